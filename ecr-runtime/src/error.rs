@@ -1,0 +1,84 @@
+//! The error type of the runtime.
+
+use std::fmt;
+
+/// Everything that can go wrong in `ecr-runtime`, reported instead of panicking.
+///
+/// The enum is `#[non_exhaustive]`: match with a wildcard arm.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum Error {
+    /// A step size that is zero, negative, NaN or infinite.
+    InvalidStepSize(f64),
+    /// A value that is NaN or infinite where a finite number is required; the string names it.
+    NonFinite(&'static str),
+    /// Two sizes that must agree do not; `what` names the pair.
+    DimensionMismatch {
+        /// Which quantity was checked.
+        what: &'static str,
+        /// The size that was required.
+        expected: usize,
+        /// The size that was given.
+        found: usize,
+    },
+    /// A matrix that must be square is not.
+    NotSquare {
+        /// Which matrix.
+        what: &'static str,
+        /// Its number of rows.
+        rows: usize,
+        /// Its number of columns.
+        cols: usize,
+    },
+    /// A method parameter (r, s, p, ...) outside its supported range.
+    InvalidParameter(String),
+    /// Any other invalid input, described in words.
+    InvalidInput(String),
+    /// The stage equations did not converge within the allowed sweeps.
+    NoConvergence {
+        /// Sweeps performed.
+        sweeps: usize,
+        /// Last residual (max-norm of the last stage update).
+        residual: f64,
+        /// Tolerance that was asked for.
+        tolerance: f64,
+    },
+    /// A numerical failure (overflow, failed decomposition, ...), described in words.
+    Numerical(String),
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Error::InvalidStepSize(h) => {
+                write!(f, "invalid step size h = {h}: it must be finite and > 0")
+            }
+            Error::NonFinite(what) => write!(f, "{what} contains NaN or infinity"),
+            Error::DimensionMismatch {
+                what,
+                expected,
+                found,
+            } => write!(f, "dimension mismatch in {what}: expected {expected}, found {found}"),
+            Error::NotSquare { what, rows, cols } => {
+                write!(f, "{what} must be square, but is {rows} x {cols}")
+            }
+            Error::InvalidParameter(msg) => write!(f, "invalid parameter: {msg}"),
+            Error::InvalidInput(msg) => write!(f, "invalid input: {msg}"),
+            Error::NoConvergence {
+                sweeps,
+                residual,
+                tolerance,
+            } => write!(
+                f,
+                "stage equations did not converge: residual {residual:e} after {sweeps} sweeps \
+                 (tolerance {tolerance:e})"
+            ),
+            Error::Numerical(msg) => write!(f, "numerical failure: {msg}"),
+        }
+    }
+}
+
+impl std::error::Error for Error {}
+
+/// Shorthand for `Result<T, ecr_runtime::Error>`.
+pub type Result<T> = std::result::Result<T, Error>;
