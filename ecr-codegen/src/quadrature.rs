@@ -1,0 +1,230 @@
+//! Gauss–Legendre and Gauss–Lobatto rules on [0, 1], certified.
+//!
+//! Nodes are the roots of exact integer polynomials. They are isolated by exact sign
+//! evaluation on a dyadic grid (a degree-n polynomial with n sign changes has all its roots
+//! bracketed, one per bracket), then refined by bisection with exact signs to a bracket of
+//! width 2^−bits. Weights are enclosed by interval arithmetic over those brackets. Every
+//! `f64` is read off an enclosure whose endpoints round alike, so it is the correctly
+//! rounded value of the true quantity.
+
+use crate::interval::Interval;
+use crate::legendre::shifted_legendre;
+use crate::poly::Poly;
+use crate::rat::Rat;
+use num_bigint::BigInt;
+use num_integer::Integer;
+use num_traits::{One, Signed, Zero};
+use std::cmp::Ordering;
+
+/// Which quadrature family.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum QuadratureKind {
+    /// s-point Gauss–Legendre: roots of P̃ₛ, exact for degree 2s − 1.
+    GaussLegendre,
+    /// s-point Gauss–Lobatto: 0, 1 and the roots of P̃'_{s−1}, exact for degree 2s − 3.
+    GaussLobatto,
+}
+
+/// A quadrature rule on [0, 1] with rigorous enclosures of its nodes and weights.
+#[derive(Clone, Debug)]
+pub struct Quadrature {
+    /// Family of the rule.
+    pub kind: QuadratureKind,
+    /// Number of points.
+    pub s: usize,
+    /// Node enclosures, increasing.
+    pub nodes: Vec<Interval>,
+    /// Weight enclosures, in node order.
+    pub weights: Vec<Interval>,
+    /// The polynomial whose roots are the (interior) nodes.
+    pub node_polynomial: Poly,
+    /// Bisection depth: interior node brackets have width ≤ 2^−bits.
+    pub bits: u32,
+}
+
+impl Quadrature {
+    /// The s-point Gauss–Legendre rule with node brackets of width ≤ 2^−bits (s ≥ 1).
+    pub fn gauss_legendre(s: usize, bits: u32) -> Quadrature {
+        assert!(s >= 1, "a Gauss–Legendre rule needs s >= 1");
+        let p = shifted_legendre(s);
+        let dp = p.derivative();
+        let nodes = real_roots_in_unit(&p, s, bits);
+        let work = working_bits(bits);
+        // bⱼ = 1 / (c (1 − c) P̃ₛ'(c)²)
+        let weights = nodes
+            .iter()
+            .map(|c| {
+                let one = Interval::point(Rat::one());
+                let d = dp.eval_interval(c, work);
+                let den = c.mul(&one.sub(c)).mul(&d.mul(&d));
+                one.div(&den).expect("P̃ₛ' has no root at a Gauss node").rounded(work)
+            })
+            .collect();
+        Quadrature {
+            kind: QuadratureKind::GaussLegendre,
+            s,
+            nodes,
+            weights,
+            node_polynomial: p,
+            bits,
+        }
+    }
+
+    /// The s-point Gauss–Lobatto rule (s ≥ 2) with interior brackets of width ≤ 2^−bits.
+    pub fn gauss_lobatto(s: usize, bits: u32) -> Quadrature {
+        assert!(s >= 2, "a Gauss–Lobatto rule needs s >= 2");
+        let p = shifted_legendre(s - 1);
+        let dp = p.derivative();
+        let work = working_bits(bits);
+        let mut nodes = vec![Interval::point(Rat::zero())];
+        nodes.extend(real_roots_in_unit(&dp, s - 2, bits));
+        nodes.push(Interval::point(Rat::one()));
+        // bⱼ = 1 / (s (s − 1) P̃_{s−1}(c)²)
+        let ss = Interval::point(Rat::from_integer(BigInt::from(s * (s - 1))));
+        let weights = nodes
+            .iter()
+            .map(|c| {
+                let v = p.eval_interval(c, work);
+                Interval::point(Rat::one())
+                    .div(&ss.mul(&v.mul(&v)))
+                    .expect("P̃_{s−1} has no root at a Lobatto node")
+                    .rounded(work)
+            })
+            .collect();
+        Quadrature {
+            kind: QuadratureKind::GaussLobatto,
+            s,
+            nodes,
+            weights,
+            node_polynomial: dp,
+            bits,
+        }
+    }
+
+    /// Σⱼ bⱼ f(cⱼ) enclosed, for a polynomial f.
+    pub fn apply_poly(&self, f: &Poly) -> Interval {
+        let work = working_bits(self.bits);
+        self.nodes
+            .iter()
+            .zip(&self.weights)
+            .fold(Interval::point(Rat::zero()), |acc, (c, b)| {
+                acc.add(&b.mul(&f.eval_interval(c, work)).rounded(work))
+            })
+    }
+}
+
+/// Fractional bits kept in interval computations on top of node brackets of width 2^−bits:
+/// enough headroom that outward rounding never dominates the enclosure width.
+pub fn working_bits(bits: u32) -> u32 {
+    bits + 64
+}
+
+/// The polynomial scaled to integer coefficients (same roots, same signs).
+fn integer_coefficients(p: &Poly) -> Vec<BigInt> {
+    let l = p
+        .coeffs()
+        .iter()
+        .fold(BigInt::one(), |acc, a| acc.lcm(a.denom()));
+    p.coeffs()
+        .iter()
+        .map(|a| a.numer() * (&l / a.denom()))
+        .collect()
+}
+
+/// Sign of p(m / 2^e), computed exactly: Σ aₖ mᵏ 2^{e(n−k)} (Horner in integers).
+fn sign_at_dyadic(a: &[BigInt], m: &BigInt, e: u32) -> Ordering {
+    let n = a.len() - 1;
+    let mut v = a[n].clone();
+    for k in (0..n).rev() {
+        v = v * m + (&a[k] << (e as usize * (n - k)));
+    }
+    v.sign_cmp()
+}
+
+trait SignCmp {
+    fn sign_cmp(&self) -> Ordering;
+}
+
+impl SignCmp for BigInt {
+    fn sign_cmp(&self) -> Ordering {
+        if self.is_zero() {
+            Ordering::Equal
+        } else if self.is_positive() {
+            Ordering::Greater
+        } else {
+            Ordering::Less
+        }
+    }
+}
+
+fn dyadic(m: &BigInt, e: u32) -> Rat {
+    Rat::new(m.clone(), BigInt::one() << e as usize)
+}
+
+/// Brackets of width ≤ 2^−bits around the `count` roots of p in (0, 1), increasing.
+///
+/// The caller guarantees that p has exactly `count` simple roots in (0, 1) (true for Legendre
+/// polynomials and their derivatives). The grid is refined until `count` sign changes (or
+/// exact zeros) are seen; a degree-n polynomial cannot have more roots than that, so the
+/// brackets are a proof of isolation.
+fn real_roots_in_unit(p: &Poly, count: usize, bits: u32) -> Vec<Interval> {
+    if count == 0 {
+        return Vec::new();
+    }
+    let a = integer_coefficients(p);
+    let mut g: u32 = 3 + 2 * count.next_power_of_two().trailing_zeros();
+    loop {
+        // (grid index of the left end, sign at the left end) per bracket; exact zeros apart.
+        let mut brackets: Vec<(BigInt, Ordering)> = Vec::new();
+        let mut exact: Vec<BigInt> = Vec::new();
+        let mut last: Option<(BigInt, Ordering)> = None;
+        for i in 1..(1u64 << g) {
+            let m = BigInt::from(i);
+            let sg = sign_at_dyadic(&a, &m, g);
+            match sg {
+                Ordering::Equal => {
+                    exact.push(m);
+                    last = None;
+                }
+                _ => {
+                    if let Some((lm, ls)) = &last {
+                        if *ls != sg && (&m - lm) == BigInt::one() {
+                            brackets.push((lm.clone(), *ls));
+                        }
+                    }
+                    last = Some((m, sg));
+                }
+            }
+        }
+        // Roots in (0, 2^−g) or (1 − 2^−g, 1) are not bracketed by interior grid points; the
+        // count check below refines the grid until every root is.
+        if brackets.len() + exact.len() == count {
+            let mut roots: Vec<Interval> = exact
+                .iter()
+                .map(|m| Interval::point(dyadic(m, g)))
+                .collect();
+            for (m, sign_lo) in brackets {
+                roots.push(bisect(&a, m, g, sign_lo, bits));
+            }
+            roots.sort_by(|x, y| x.lo.cmp(&y.lo));
+            return roots;
+        }
+        g += 2;
+        assert!(g <= 24, "root isolation failed: polynomial does not have {count} roots in (0,1)");
+    }
+}
+
+/// Bisection of [m/2^e, (m+1)/2^e] (sign `sign_lo` at the left end) to width ≤ 2^−bits.
+fn bisect(a: &[BigInt], mut m: BigInt, mut e: u32, sign_lo: Ordering, bits: u32) -> Interval {
+    while e < bits {
+        m <<= 1usize;
+        e += 1;
+        let mid = &m + BigInt::one();
+        match sign_at_dyadic(a, &mid, e) {
+            Ordering::Equal => return Interval::point(dyadic(&mid, e)),
+            s if s == sign_lo => m = mid,
+            _ => {}
+        }
+    }
+    Interval::new(dyadic(&m, e), dyadic(&(&m + BigInt::one()), e))
+}
