@@ -18,12 +18,19 @@ pub struct Interval {
 impl Interval {
     /// `[lo, hi]`; the endpoints are swapped if given in the wrong order.
     pub fn new(lo: Rat, hi: Rat) -> Self {
-        if lo <= hi { Interval { lo, hi } } else { Interval { lo: hi, hi: lo } }
+        if lo <= hi {
+            Interval { lo, hi }
+        } else {
+            Interval { lo: hi, hi: lo }
+        }
     }
 
     /// The degenerate interval `[x, x]`.
     pub fn point(x: Rat) -> Self {
-        Interval { lo: x.clone(), hi: x }
+        Interval {
+            lo: x.clone(),
+            hi: x,
+        }
     }
 
     /// Width `hi - lo`.
@@ -43,17 +50,28 @@ impl Interval {
 
     /// Interval sum.
     pub fn add(&self, o: &Interval) -> Interval {
-        Interval { lo: &self.lo + &o.lo, hi: &self.hi + &o.hi }
+        Interval {
+            lo: &self.lo + &o.lo,
+            hi: &self.hi + &o.hi,
+        }
     }
 
     /// Interval difference.
     pub fn sub(&self, o: &Interval) -> Interval {
-        Interval { lo: &self.lo - &o.hi, hi: &self.hi - &o.lo }
+        Interval {
+            lo: &self.lo - &o.hi,
+            hi: &self.hi - &o.lo,
+        }
     }
 
     /// Interval product.
     pub fn mul(&self, o: &Interval) -> Interval {
-        let p = [&self.lo * &o.lo, &self.lo * &o.hi, &self.hi * &o.lo, &self.hi * &o.hi];
+        let p = [
+            &self.lo * &o.lo,
+            &self.lo * &o.hi,
+            &self.hi * &o.lo,
+            &self.hi * &o.hi,
+        ];
         let lo = p.iter().min().cloned().unwrap_or_default();
         let hi = p.iter().max().cloned().unwrap_or_default();
         Interval { lo, hi }

@@ -101,7 +101,8 @@ fn hyp2f1_terminating(a: i64, b: &Rat, c: &Rat, x: &Rat) -> Rat {
     let n = (-a) as usize;
     let a = int(a);
     (0..=n).fold(Rat::zero(), |acc, l| {
-        acc + pochhammer(&a, l) * pochhammer(b, l) / (pochhammer(c, l) * Rat::from_integer(factorial(l as u64)))
+        acc + pochhammer(&a, l) * pochhammer(b, l)
+            / (pochhammer(c, l) * Rat::from_integer(factorial(l as u64)))
             * pow(x, l)
     })
 }
@@ -116,11 +117,9 @@ fn hyp0f1_series(b: &Rat, c: &Rat, terms: usize) -> Vec<Rat> {
 fn series_mul(a: &[Rat], b: &[Rat], terms: usize) -> Vec<Rat> {
     (0..terms)
         .map(|n| {
-            (0..=n).fold(Rat::zero(), |acc, i| {
-                match (a.get(i), b.get(n - i)) {
-                    (Some(x), Some(y)) => acc + x * y,
-                    _ => acc,
-                }
+            (0..=n).fold(Rat::zero(), |acc, i| match (a.get(i), b.get(n - i)) {
+                (Some(x), Some(y)) => acc + x * y,
+                _ => acc,
             })
         })
         .collect()
@@ -133,7 +132,12 @@ pub fn tc_a_hypergeometric(r: usize, tau: &Rat, sigma: &Rat, terms: usize) -> Ve
         .map(|l| {
             (0..r).fold(Rat::zero(), |acc, j| {
                 let pj = shifted_legendre(j).eval(sigma) * int(2 * j as i64 + 1);
-                let f = hyp2f1_terminating(-(j as i64), &int(j as i64 + 1), &int(2 * l as i64 + 3), tau);
+                let f = hyp2f1_terminating(
+                    -(j as i64),
+                    &int(j as i64 + 1),
+                    &int(2 * l as i64 + 3),
+                    tau,
+                );
                 acc + pj * sign(j + l) * inv_factorial((2 * l + 2) as u64) * f
             })
         })
@@ -187,9 +191,19 @@ pub fn tc_s_closed(j: usize, terms: usize) -> Vec<Rat> {
             int(2 * m as i64 + 2) + &half,
         )
     };
-    let prod = series_mul(&hyp0f1_series(&b1, &c, terms), &hyp0f1_series(&b2, &c, terms), terms);
+    let prod = series_mul(
+        &hyp0f1_series(&b1, &c, terms),
+        &hyp0f1_series(&b2, &c, terms),
+        terms,
+    );
     (0..terms)
-        .map(|l| if l < shift { Rat::zero() } else { &pref * &prod[l - shift] })
+        .map(|l| {
+            if l < shift {
+                Rat::zero()
+            } else {
+                &pref * &prod[l - shift]
+            }
+        })
         .collect()
 }
 
@@ -198,7 +212,9 @@ pub fn tc_s_by_integral(j: usize, terms: usize) -> Vec<Rat> {
     let pj = shifted_legendre(j);
     (0..terms)
         .map(|l| {
-            Poly::one_minus_x_pow(2 * l).mul(&pj).integral_01() * sign(l) * inv_factorial((2 * l) as u64)
+            Poly::one_minus_x_pow(2 * l).mul(&pj).integral_01()
+                * sign(l)
+                * inv_factorial((2 * l) as u64)
         })
         .collect()
 }
@@ -232,7 +248,9 @@ pub fn tc_b1_by_integral(r: usize, sigma: &Rat, terms: usize) -> Vec<Rat> {
     let p = projection_kernel(r, sigma);
     (0..terms)
         .map(|l| {
-            Poly::one_minus_x_pow(2 * l).mul(&p).integral_01() * sign(l) * inv_factorial((2 * l) as u64)
+            Poly::one_minus_x_pow(2 * l).mul(&p).integral_01()
+                * sign(l)
+                * inv_factorial((2 * l) as u64)
         })
         .collect()
 }
@@ -273,15 +291,15 @@ fn solve(a: &mut [Vec<Rat>], n: usize) -> Vec<Rat> {
             .expect("singular Padé system");
         a.swap(col, piv);
         let p = a[col][col].clone();
-        for c in col..=n {
-            a[col][c] = &a[col][c] / &p;
+        for x in a[col][col..=n].iter_mut() {
+            *x = &*x / &p;
         }
-        for r in 0..n {
-            if r != col && !a[r][col].is_zero() {
-                let f = a[r][col].clone();
-                for c in col..=n {
-                    let v = &f * &a[col][c];
-                    a[r][c] -= v;
+        let pivot_row = a[col].clone();
+        for (r, row) in a.iter_mut().enumerate() {
+            if r != col && !row[col].is_zero() {
+                let f = row[col].clone();
+                for (x, pv) in row[col..=n].iter_mut().zip(&pivot_row[col..=n]) {
+                    *x -= &f * pv;
                 }
             }
         }

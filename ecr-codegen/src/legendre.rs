@@ -38,7 +38,9 @@ pub fn c_jk(j: usize, k: usize) -> Rat {
 
 /// The r × r lower-triangular matrix of c_{jk}, j, k < r.
 pub fn c_matrix(r: usize) -> Vec<Vec<Rat>> {
-    (0..r).map(|j| (0..=j).map(|k| c_jk(j, k)).collect()).collect()
+    (0..r)
+        .map(|j| (0..=j).map(|k| c_jk(j, k)).collect())
+        .collect()
 }
 
 /// β_k(σ) = Σ_{j=k}^{r−1} (2j+1) c_{jk} P̃ⱼ(σ): the moment polynomial of order r.

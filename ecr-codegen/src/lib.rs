@@ -69,14 +69,20 @@ impl fmt::Display for CodegenError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             CodegenError::ROutOfRange { r } => {
-                write!(f, "r = {r} is out of range: the generator supports 1 <= r <= {MAX_R}")
+                write!(
+                    f,
+                    "r = {r} is out of range: the generator supports 1 <= r <= {MAX_R}"
+                )
             }
             CodegenError::SOutOfRange { r, s } => write!(
                 f,
                 "s = {s} is out of range: it must satisfy r <= s <= {MAX_S} (here r = {r})"
             ),
             CodegenError::UnknownFamily(name) => {
-                write!(f, "unknown method family '{name}' (expected ec, tc or rknc)")
+                write!(
+                    f,
+                    "unknown method family '{name}' (expected ec, tc or rknc)"
+                )
             }
             CodegenError::Certification { r, s } => write!(
                 f,

@@ -57,7 +57,9 @@ impl Quadrature {
                 let one = Interval::point(Rat::one());
                 let d = dp.eval_interval(c, work);
                 let den = c.mul(&one.sub(c)).mul(&d.mul(&d));
-                one.div(&den).expect("P̃ₛ' has no root at a Gauss node").rounded(work)
+                one.div(&den)
+                    .expect("P̃ₛ' has no root at a Gauss node")
+                    .rounded(work)
             })
             .collect();
         Quadrature {
@@ -210,7 +212,10 @@ fn real_roots_in_unit(p: &Poly, count: usize, bits: u32) -> Vec<Interval> {
             return roots;
         }
         g += 2;
-        assert!(g <= 24, "root isolation failed: polynomial does not have {count} roots in (0,1)");
+        assert!(
+            g <= 24,
+            "root isolation failed: polynomial does not have {count} roots in (0,1)"
+        );
     }
 }
 

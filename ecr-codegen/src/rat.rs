@@ -63,13 +63,13 @@ pub fn pow(base: &Rat, e: usize) -> Rat {
     acc
 }
 
-/// Decimal expansion of `x` with `digits` digits after the point (truncated toward zero),
-/// for provenance comments and human-readable tables.
+/// Decimal expansion of `x` with `digits` digits after the point (rounded to nearest, ties
+/// away from zero), for provenance comments and human-readable tables.
 pub fn to_decimal(x: &Rat, digits: usize) -> String {
     let neg = x.is_negative();
     let a = x.abs();
     let scale = BigInt::from(10u32).pow(digits as u32);
-    let scaled = (a.numer() * &scale) / a.denom();
+    let scaled = (a.numer() * &scale * BigInt::from(2) + a.denom()) / (a.denom() * BigInt::from(2));
     let s = scaled.to_string();
     let s = if s.len() <= digits {
         format!("{}{}", "0".repeat(digits + 1 - s.len()), s)

@@ -112,7 +112,10 @@ fn certify(iv: Interval) -> Option<Certified> {
     if !(iv.relative_width_at_most(&digits_60())) {
         return None;
     }
-    iv.round_f64().map(|value| Certified { value, enclosure: iv })
+    iv.round_f64().map(|value| Certified {
+        value,
+        enclosure: iv,
+    })
 }
 
 fn certify_all(ivs: Vec<Interval>) -> Option<Vec<Certified>> {
@@ -151,7 +154,13 @@ impl MethodTable {
         }
     }
 
-    fn try_generate(family: Family, r: usize, s: usize, betas: &[Poly], bits: u32) -> Option<MethodTable> {
+    fn try_generate(
+        family: Family,
+        r: usize,
+        s: usize,
+        betas: &[Poly],
+        bits: u32,
+    ) -> Option<MethodTable> {
         let q = Quadrature::gauss_legendre(s, bits);
         let work = working_bits(bits);
         let w_iv: Vec<Vec<Interval>> = betas
@@ -173,7 +182,10 @@ impl MethodTable {
                         (0..s)
                             .map(|j| {
                                 (0..r).fold(Interval::point(Rat::zero()), |acc, k| {
-                                    let ck = (0..k + 2).fold(Interval::point(inv_factorial(k as u64 + 2)), |p, _| p.mul(ci).rounded(work));
+                                    let ck = (0..k + 2).fold(
+                                        Interval::point(inv_factorial(k as u64 + 2)),
+                                        |p, _| p.mul(ci).rounded(work),
+                                    );
                                     acc.add(&ck.mul(&w_iv[k][j]).rounded(work))
                                 })
                             })
@@ -185,7 +197,11 @@ impl MethodTable {
                 (0..s)
                     .map(|j| {
                         (0..r).fold(Interval::point(Rat::zero()), |acc, k| {
-                            acc.add(&w_iv[k][j].mul(&Interval::point(inv_factorial(k as u64 + 2))).rounded(work))
+                            acc.add(
+                                &w_iv[k][j]
+                                    .mul(&Interval::point(inv_factorial(k as u64 + 2)))
+                                    .rounded(work),
+                            )
                         })
                     })
                     .collect(),
@@ -200,7 +216,10 @@ impl MethodTable {
             s,
             nodes: certify_all(q.nodes.clone())?,
             weights: certify_all(q.weights.clone())?,
-            w: w_iv.into_iter().map(certify_all).collect::<Option<Vec<_>>>()?,
+            w: w_iv
+                .into_iter()
+                .map(certify_all)
+                .collect::<Option<Vec<_>>>()?,
             node_polynomial: q.node_polynomial.clone(),
             legendre: (0..r).map(shifted_legendre).collect(),
             c: c_matrix(r),

@@ -68,7 +68,11 @@ fn gauss_nodes(s: usize) -> Vec<Fx> {
             for _ in 0..14 {
                 let (ps, pm) = legendre_pair(s, &x);
                 // P_s'(x) = s (x P_s − P_{s−1}) / (x² − 1)
-                let dp = x.mul(&ps).sub(&pm).scale(s as i64).div(&x.mul(&x).sub(&Fx::int(1)));
+                let dp = x
+                    .mul(&ps)
+                    .sub(&pm)
+                    .scale(s as i64)
+                    .div(&x.mul(&x).sub(&Fx::int(1)));
                 x = x.sub(&ps.div(&dp));
             }
             // c = (1 − x)/2 (x descending in i, so c ascending).
@@ -88,7 +92,9 @@ fn gauss_weight(s: usize, c: &Fx) -> Fx {
     let sum = shifted_values(s, c)
         .iter()
         .enumerate()
-        .fold(Fx::int(0), |acc, (j, p)| acc.add(&p.mul(p).scale(2 * j as i64 + 1)));
+        .fold(Fx::int(0), |acc, (j, p)| {
+            acc.add(&p.mul(p).scale(2 * j as i64 + 1))
+        });
     Fx::int(1).div(&sum)
 }
 
@@ -100,7 +106,11 @@ fn assert_correctly_rounded(f: f64, x: &Fx, what: &str) {
     let up = Rat::from_float(f64::from_bits(f.abs().to_bits() + 1)).unwrap();
     let half_ulp = (up - Rat::from_float(f.abs()).unwrap()) / Rat::from_integer(2.into());
     let slack = Rat::new(BigInt::one(), BigInt::one() << 380);
-    assert!(err <= half_ulp + slack, "{what}: {f:?} is not the nearest float to {}", exact.to_f64().unwrap());
+    assert!(
+        err <= half_ulp + slack,
+        "{what}: {f:?} is not the nearest float to {}",
+        exact.to_f64().unwrap()
+    );
     assert_eq!(to_f64(&exact).to_bits(), f.to_bits(), "{what}");
 }
 
@@ -122,7 +132,11 @@ fn nodes_weights_and_moment_weights_are_correctly_rounded_for_s_up_to_16() {
                         acc.add(&Fx(&pv[j].0 * cjk))
                     });
                     let w = b.mul(&beta);
-                    assert_correctly_rounded(t.w[k][i].value, &w, &format!("w_{k}{i} (r = {r}, s = {s})"));
+                    assert_correctly_rounded(
+                        t.w[k][i].value,
+                        &w,
+                        &format!("w_{k}{i} (r = {r}, s = {s})"),
+                    );
                 }
             }
         }
@@ -145,6 +159,9 @@ fn to_f64_rounds_to_nearest_even() {
         let next = Rat::from_float(f64::from_bits(f.to_bits() + 1)).unwrap();
         let prev = Rat::from_float(f64::from_bits(f.to_bits() - 1)).unwrap();
         let d = (&x - &fr).abs();
-        assert!(d <= (&x - &next).abs() && d <= (&x - &prev).abs(), "{x} -> {f:?}");
+        assert!(
+            d <= (&x - &next).abs() && d <= (&x - &prev).abs(),
+            "{x} -> {f:?}"
+        );
     }
 }

@@ -16,7 +16,11 @@ fn orthonormality_of_shifted_legendre() {
     // ∫₀¹ P̃ᵢ P̃ⱼ = δᵢⱼ/(2j+1), i.e. p̂ⱼ = √(2j+1) P̃ⱼ orthonormal.
     assert!(check_orthogonality(16));
     for j in 0..16 {
-        assert_eq!(shifted_legendre(j).eval(&Rat::one()), Rat::one(), "P̃_{j}(1) = 1");
+        assert_eq!(
+            shifted_legendre(j).eval(&Rat::one()),
+            Rat::one(),
+            "P̃_{j}(1) = 1"
+        );
     }
 }
 
@@ -24,7 +28,11 @@ fn orthonormality_of_shifted_legendre() {
 fn legendre_in_terms_of_c_jk() {
     // P̃ⱼ(x) = Σₖ c_{jk} xᵏ/k!: the identity the kernel's closed form rests on.
     for j in 0..14 {
-        let p = Poly::new((0..=j).map(|k| c_jk(j, k) * inv_factorial(k as u64)).collect());
+        let p = Poly::new(
+            (0..=j)
+                .map(|k| c_jk(j, k) * inv_factorial(k as u64))
+                .collect(),
+        );
         assert_eq!(p, shifted_legendre(j));
     }
 }
@@ -35,7 +43,9 @@ fn beta_reproduces_projection() {
     for r in 1..8 {
         for sigma in sample_points() {
             let lhs = (0..r).fold(Poly::zero(), |acc, k| {
-                acc.add(&Poly::monomial(k).scale(&(beta(r, k).eval(&sigma) * inv_factorial(k as u64))))
+                acc.add(
+                    &Poly::monomial(k).scale(&(beta(r, k).eval(&sigma) * inv_factorial(k as u64))),
+                )
             });
             let rhs = ecr_codegen::legendre::projection_kernel(r, &sigma);
             assert_eq!(lhs, rhs, "r = {r}");
@@ -51,8 +61,14 @@ fn tight() -> Rat {
 fn gauss_legendre_exact_to_degree_2s_minus_1_and_not_beyond() {
     for s in 1..=16 {
         let q = Quadrature::gauss_legendre(s, 256);
-        let sum = q.weights.iter().fold(ecr_codegen::Interval::point(Rat::zero()), |a, b| a.add(b));
-        assert!(sum.contains(&Rat::one()) && sum.width() < tight(), "Σb = 1 for s = {s}");
+        let sum = q
+            .weights
+            .iter()
+            .fold(ecr_codegen::Interval::point(Rat::zero()), |a, b| a.add(b));
+        assert!(
+            sum.contains(&Rat::one()) && sum.width() < tight(),
+            "Σb = 1 for s = {s}"
+        );
         for m in 0..=2 * s {
             let iv = q.apply_poly(&Poly::monomial(m));
             let exact = frac(1, m as i64 + 1);
@@ -60,7 +76,10 @@ fn gauss_legendre_exact_to_degree_2s_minus_1_and_not_beyond() {
                 assert!(iv.contains(&exact), "s = {s}: x^{m} integrated exactly");
                 assert!(iv.width() < tight(), "s = {s}: enclosure tight");
             } else {
-                assert!(!iv.contains(&exact), "s = {s}: degree 2s is not integrated exactly");
+                assert!(
+                    !iv.contains(&exact),
+                    "s = {s}: degree 2s is not integrated exactly"
+                );
             }
         }
     }
@@ -75,7 +94,10 @@ fn gauss_lobatto_exact_to_degree_2s_minus_3() {
             let iv = q.apply_poly(&Poly::monomial(m));
             let exact = frac(1, m as i64 + 1);
             if m <= 2 * s - 3 {
-                assert!(iv.contains(&exact) && iv.width() < tight(), "s = {s}, m = {m}");
+                assert!(
+                    iv.contains(&exact) && iv.width() < tight(),
+                    "s = {s}, m = {m}"
+                );
             } else {
                 assert!(!iv.contains(&exact), "s = {s}: degree 2s-2 is not exact");
             }
@@ -89,8 +111,16 @@ fn ec_kernel_series_matches_defining_integral() {
         for tau in sample_points() {
             for sigma in sample_points() {
                 let by_integral = ec_kernel_by_integral(r, &tau, &sigma, 8);
-                assert_eq!(ec_kernel_closed(r, &tau, &sigma, 8), by_integral, "closed form r={r}");
-                assert_eq!(ec_kernel_moment(r, &tau, &sigma, 8), by_integral, "moment form r={r}");
+                assert_eq!(
+                    ec_kernel_closed(r, &tau, &sigma, 8),
+                    by_integral,
+                    "closed form r={r}"
+                );
+                assert_eq!(
+                    ec_kernel_moment(r, &tau, &sigma, 8),
+                    by_integral,
+                    "moment form r={r}"
+                );
             }
         }
     }
@@ -120,8 +150,16 @@ fn tc_kernel_a_closed_form_matches_defining_integral() {
         for tau in sample_points() {
             for sigma in sample_points() {
                 let by_integral = tc_a_by_integral(r, &tau, &sigma, 7);
-                assert_eq!(tc_a_hypergeometric(r, &tau, &sigma, 7), by_integral, "₂F₁ form r={r}");
-                assert_eq!(tc_a_moment(r, &tau, &sigma, 7), by_integral, "moment form r={r}");
+                assert_eq!(
+                    tc_a_hypergeometric(r, &tau, &sigma, 7),
+                    by_integral,
+                    "₂F₁ form r={r}"
+                );
+                assert_eq!(
+                    tc_a_moment(r, &tau, &sigma, 7),
+                    by_integral,
+                    "moment form r={r}"
+                );
             }
         }
     }
@@ -196,7 +234,10 @@ fn pade_approximants_of_phi() {
 #[test]
 fn small_sanity_values() {
     assert_eq!(c_jk(2, 1), int(-6));
-    assert_eq!(shifted_legendre(2), Poly::new(vec![int(1), int(-6), int(6)]));
+    assert_eq!(
+        shifted_legendre(2),
+        Poly::new(vec![int(1), int(-6), int(6)])
+    );
     assert_eq!(beta(1, 0), Poly::constant(int(1)));
     assert_eq!(pow(&frac(1, 2), 3), frac(1, 8));
 }

@@ -58,7 +58,10 @@ impl fmt::Display for Error {
                 what,
                 expected,
                 found,
-            } => write!(f, "dimension mismatch in {what}: expected {expected}, found {found}"),
+            } => write!(
+                f,
+                "dimension mismatch in {what}: expected {expected}, found {found}"
+            ),
             Error::NotSquare { what, rows, cols } => {
                 write!(f, "{what} must be square, but is {rows} x {cols}")
             }

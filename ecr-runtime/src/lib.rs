@@ -6,5 +6,6 @@ pub mod operator;
 pub mod phi;
 pub mod problems;
 pub mod special;
+pub mod tables;
 
 pub use error::{Error, Result};

@@ -8,7 +8,11 @@ fn floats(v: &[Certified]) -> Value {
 }
 
 fn decimals(v: &[Certified]) -> Value {
-    Value::Array(v.iter().map(|c| json!(c.decimal(PROVENANCE_DIGITS))).collect())
+    Value::Array(
+        v.iter()
+            .map(|c| json!(c.decimal(PROVENANCE_DIGITS)))
+            .collect(),
+    )
 }
 
 fn poly_text(p: &crate::Poly) -> Value {
@@ -50,7 +54,14 @@ pub fn to_json(t: &MethodTable) -> Value {
             // φᵗ_m(K) = Σ_l (−K)^l/(2l+m)!, m = 0..=r+1, 12 terms each.
             v["phi_trig_series"] = Value::Array(
                 (0..=t.r + 1)
-                    .map(|m| Value::Array(phi_trig_series(m, 12).iter().map(|a| json!(to_text(a))).collect()))
+                    .map(|m| {
+                        Value::Array(
+                            phi_trig_series(m, 12)
+                                .iter()
+                                .map(|a| json!(to_text(a)))
+                                .collect(),
+                        )
+                    })
                     .collect(),
             );
         }

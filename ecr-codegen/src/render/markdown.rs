@@ -9,9 +9,23 @@ pub struct Markdown<'a>(pub &'a MethodTable);
 impl fmt::Display for Markdown<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let t = self.0;
-        writeln!(f, "# {} tables: r = {}, s = {} (order {})\n", t.family.name().to_uppercase(), t.r, t.s, 2 * t.r)?;
-        writeln!(f, "Nodes: {}. Every float is the correctly rounded value of an enclosure of relative width < 1e-60.\n", node_provenance(t))?;
-        writeln!(f, "| i | c_i (f64) | c_i (exact, {PROVENANCE_DIGITS} digits) | b_i (f64) | b_i (exact) |")?;
+        writeln!(
+            f,
+            "# {} tables: r = {}, s = {} (order {})\n",
+            t.family.name().to_uppercase(),
+            t.r,
+            t.s,
+            2 * t.r
+        )?;
+        writeln!(
+            f,
+            "Nodes: {}. Every float is the correctly rounded value of an enclosure of relative width < 1e-60.\n",
+            node_provenance(t)
+        )?;
+        writeln!(
+            f,
+            "| i | c_i (f64) | c_i (exact, {PROVENANCE_DIGITS} digits) | b_i (f64) | b_i (exact) |"
+        )?;
         writeln!(f, "|---|---|---|---|---|")?;
         for (i, (c, b)) in t.nodes.iter().zip(&t.weights).enumerate() {
             writeln!(
@@ -55,7 +69,13 @@ impl fmt::Display for Markdown<'_> {
             writeln!(f, "|---|---|---|")?;
             for (i, (row, bb)) in t.abar.iter().zip(&t.bbar).enumerate() {
                 let txt: Vec<String> = row.iter().map(|c| float_literal(c.value)).collect();
-                writeln!(f, "| {} | {} | {} |", i + 1, txt.join(", "), float_literal(bb.value))?;
+                writeln!(
+                    f,
+                    "| {} | {} | {} |",
+                    i + 1,
+                    txt.join(", "),
+                    float_literal(bb.value)
+                )?;
             }
         }
         Ok(())

@@ -2,17 +2,17 @@
 //! tokens (`ToTokens`, feature `tokens`, for the proc-macro), JSON ([`to_json`], feature
 //! `json`) and Markdown ([`Markdown`]). All print floats so they round-trip exactly.
 
-mod markdown;
-mod rust;
 #[cfg(feature = "json")]
 mod json;
+mod markdown;
+mod rust;
 #[cfg(feature = "tokens")]
 mod tokens;
 
-pub use markdown::Markdown;
-pub use rust::{RustSource, rust_index};
 #[cfg(feature = "json")]
 pub use json::to_json;
+pub use markdown::Markdown;
+pub use rust::{RustSource, rust_index};
 
 /// A float literal that parses back to the same bits (Rust's shortest round-trip `{:?}`).
 pub fn float_literal(x: f64) -> String {
@@ -21,8 +21,5 @@ pub fn float_literal(x: f64) -> String {
 
 /// Description of how the nodes were obtained, for provenance comments.
 pub(crate) fn node_provenance(t: &crate::MethodTable) -> String {
-    format!(
-        "roots of P̃_{}(x) = {} in (0, 1)",
-        t.s, t.node_polynomial
-    )
+    format!("roots of P̃_{}(x) = {} in (0, 1)", t.s, t.node_polynomial)
 }

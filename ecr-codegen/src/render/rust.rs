@@ -40,17 +40,28 @@ impl fmt::Display for RustSource<'_> {
             t.s,
             2 * t.r
         )?;
-        writeln!(f, "#[allow(clippy::excessive_precision, clippy::unreadable_literal)]")?;
+        writeln!(
+            f,
+            "#[allow(clippy::excessive_precision, clippy::unreadable_literal)]"
+        )?;
         writeln!(f, "pub mod {} {{", t.ident())?;
         writeln!(f, "    /// Order parameter r (the method has order 2r).")?;
         writeln!(f, "    pub const R: usize = {};", t.r)?;
         writeln!(f, "    /// Number of quadrature points s.")?;
         writeln!(f, "    pub const S: usize = {};", t.s)?;
         let lab = |p: &str, v: &[Certified]| -> Vec<(String, Certified)> {
-            v.iter().enumerate().map(|(i, c)| (format!("{p}_{}", i + 1), c.clone())).collect()
+            v.iter()
+                .enumerate()
+                .map(|(i, c)| (format!("{p}_{}", i + 1), c.clone()))
+                .collect()
         };
         let nodes = lab("c", &t.nodes);
-        write_array(f, &format!("Nodes cᵢ: {}.", node_provenance(t)), "NODES", &nodes)?;
+        write_array(
+            f,
+            &format!("Nodes cᵢ: {}.", node_provenance(t)),
+            "NODES",
+            &nodes,
+        )?;
         let weights = lab("b", &t.weights);
         write_array(
             f,
@@ -58,20 +69,30 @@ impl fmt::Display for RustSource<'_> {
             "WEIGHTS",
             &weights,
         )?;
-        let w: Vec<(String, Certified)> = t
-            .w
+        let w: Vec<(String, Certified)> =
+            t.w.iter()
+                .enumerate()
+                .flat_map(|(k, row)| {
+                    row.iter().enumerate().map(move |(j, c)| {
+                        (
+                            format!("w_{{{k},{}}} = b_{} β_{k}(c_{})", j + 1, j + 1, j + 1),
+                            c.clone(),
+                        )
+                    })
+                })
+                .collect();
+        let betas: Vec<String> = t
+            .beta
             .iter()
             .enumerate()
-            .flat_map(|(k, row)| {
-                row.iter()
-                    .enumerate()
-                    .map(move |(j, c)| (format!("w_{{{k},{}}} = b_{} β_{k}(c_{})", j + 1, j + 1, j + 1), c.clone()))
-            })
+            .map(|(k, b)| format!("β_{k}(x) = {b}"))
             .collect();
-        let betas: Vec<String> = t.beta.iter().enumerate().map(|(k, b)| format!("β_{k}(x) = {b}")).collect();
         write_array(
             f,
-            &format!("Moment weights w_{{kj}} = bⱼ β_k(cⱼ), row-major r × s; {}.", betas.join("; ")),
+            &format!(
+                "Moment weights w_{{kj}} = bⱼ β_k(cⱼ), row-major r × s; {}.",
+                betas.join("; ")
+            ),
             "W",
             &w,
         )?;
@@ -86,9 +107,19 @@ impl fmt::Display for RustSource<'_> {
                         .map(move |(j, c)| (format!("ā_{{{},{}}}", i + 1, j + 1), c.clone()))
                 })
                 .collect();
-            write_array(f, "RKN matrix āᵢⱼ = Σ_k cᵢ^{k+2}/(k+2)! w_{kj}, row-major s × s.", "ABAR", &abar)?;
+            write_array(
+                f,
+                "RKN matrix āᵢⱼ = Σ_k cᵢ^{k+2}/(k+2)! w_{kj}, row-major s × s.",
+                "ABAR",
+                &abar,
+            )?;
             let bbar = lab("b̄", &t.bbar);
-            write_array(f, "RKN position weights b̄ⱼ = Σ_k w_{kj}/(k+2)!.", "BBAR", &bbar)?;
+            write_array(
+                f,
+                "RKN position weights b̄ⱼ = Σ_k w_{kj}/(k+2)!.",
+                "BBAR",
+                &bbar,
+            )?;
         }
         writeln!(f, "}}")
     }

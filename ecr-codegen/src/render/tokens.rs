@@ -25,9 +25,18 @@ impl ToTokens for MethodTable {
             let l = lits(row);
             quote!([#(#l),*])
         });
-        let doc_nodes = format!(" Nodes cᵢ, {}: {}.", super::node_provenance(self), provenance("c", &self.nodes));
+        let doc_nodes = format!(
+            " Nodes cᵢ, {}: {}.",
+            super::node_provenance(self),
+            provenance("c", &self.nodes)
+        );
         let doc_weights = format!(" Weights bᵢ: {}.", provenance("b", &self.weights));
-        let betas: Vec<String> = self.beta.iter().enumerate().map(|(k, b)| format!("β_{k}(x) = {b}")).collect();
+        let betas: Vec<String> = self
+            .beta
+            .iter()
+            .enumerate()
+            .map(|(k, b)| format!("β_{k}(x) = {b}"))
+            .collect();
         let doc_w = format!(" Moment weights w_kj = b_j β_k(c_j); {}.", betas.join("; "));
         out.extend(quote! {
             /// Order parameter r (order 2r).

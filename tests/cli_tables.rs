@@ -1,0 +1,115 @@
+//! `ecr tables`: the JSON contract, exact round trip of floats, and one-line errors with
+//! exit status 2 on bad input.
+
+use ecr_codegen::{Family, MethodTable};
+use std::process::Command;
+
+fn ecr(args: &[&str]) -> (i32, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_ecr"))
+        .args(args)
+        .output()
+        .expect("run ecr");
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8(out.stdout).unwrap(),
+        String::from_utf8(out.stderr).unwrap(),
+    )
+}
+
+fn bits(v: &serde_json::Value) -> Vec<u64> {
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap().to_bits())
+        .collect()
+}
+
+#[test]
+fn json_contract_and_exact_round_trip() {
+    for (family, fam) in [
+        ("ec", Family::Ec),
+        ("tc", Family::Tc),
+        ("rknc", Family::Rknc),
+    ] {
+        for (r, s) in [(1, 1), (2, 2), (3, 5), (6, 6)] {
+            let (code, out, err) = ecr(&[
+                "tables",
+                "--family",
+                family,
+                "--r",
+                &r.to_string(),
+                "--s",
+                &s.to_string(),
+                "--format",
+                "json",
+            ]);
+            assert_eq!(code, 0, "{err}");
+            let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+            let t = MethodTable::generate(fam, r, s).unwrap();
+            assert_eq!(v["family"], family);
+            assert_eq!(v["r"], r);
+            assert_eq!(v["s"], s);
+            // Floats parse back to exactly the generator's bits.
+            let b = |x: &[f64]| x.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&v["nodes"]), b(&t.nodes_f64()));
+            assert_eq!(bits(&v["weights"]), b(&t.weights_f64()));
+            let w: Vec<u64> = v["w"].as_array().unwrap().iter().flat_map(bits).collect();
+            assert_eq!(v["w"].as_array().unwrap().len(), r);
+            assert_eq!(w, b(&t.w_f64()));
+            // Exact data as "p/q" strings.
+            let c = &v["exact"]["c"];
+            assert_eq!(c.as_array().unwrap().len(), r);
+            assert_eq!(v["exact"]["legendre"].as_array().unwrap().len(), r);
+            assert_eq!(v["exact"]["beta"].as_array().unwrap().len(), r);
+            for row in c.as_array().unwrap() {
+                for x in row.as_array().unwrap() {
+                    let txt = x.as_str().unwrap();
+                    assert!(txt.parse::<num_rational::BigRational>().is_ok(), "{txt}");
+                }
+            }
+            if fam == Family::Rknc {
+                assert_eq!(v["abar"].as_array().unwrap().len(), s);
+            }
+        }
+    }
+}
+
+#[test]
+fn rust_and_markdown_formats() {
+    let (code, out, _) = ecr(&["tables", "--family", "ec", "--r", "3", "--format", "rust"]);
+    assert_eq!(code, 0);
+    assert!(out.contains("DO NOT EDIT"));
+    assert!(out.contains("pub const NODES: [f64; 3]"));
+    assert!(out.contains("pub const W: [f64; 9]"));
+    let (code, out, _) = ecr(&[
+        "tables", "--family", "rknc", "--r", "2", "--format", "markdown",
+    ]);
+    assert_eq!(code, 0);
+    assert!(out.starts_with("# RKNC tables: r = 2, s = 2"));
+    assert!(out.contains("| 1 | 0.2113248654051871 |"));
+}
+
+#[test]
+fn bad_input_is_one_line_and_exit_status_2() {
+    let cases: &[&[&str]] = &[
+        &["tables", "--family", "ec", "--r", "0"],
+        &["tables", "--family", "ec", "--r", "33"],
+        &["tables", "--family", "ec", "--r", "4", "--s", "3"],
+        &["tables", "--family", "ec", "--r", "2", "--s", "65"],
+        &["tables", "--family", "nope", "--r", "2"],
+        &["tables", "--family", "ec", "--r", "2", "--format", "yaml"],
+        &["tables", "--family", "ec", "--r", "-1"],
+        &["tables", "--family", "ec"],
+        &["tables", "--r", "2"],
+        &["frobnicate"],
+        &[],
+    ];
+    for args in cases {
+        let (code, out, err) = ecr(args);
+        assert_eq!(code, 2, "{args:?}: {err}");
+        assert!(out.is_empty(), "{args:?}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{args:?}: {err}");
+        assert!(err.starts_with("error: "), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{args:?}");
+    }
+}
