@@ -1,0 +1,136 @@
+//! Fixed-step integration over [t0, T] with observers and a final report.
+
+use crate::stepper::EcStepper;
+use crate::system::System;
+use crate::{Error, Result};
+
+/// Summary of an integration.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Report {
+    /// Final time reached.
+    pub t_end: f64,
+    /// Steps taken.
+    pub steps: usize,
+    /// Evaluations of g.
+    pub g_evals: usize,
+    /// Fixed-point sweeps, summed over the steps.
+    pub sweeps: usize,
+    /// Largest number of sweeps in one step.
+    pub max_sweeps: usize,
+    /// Steps whose stage iteration stopped at the sweep limit without reaching the tolerance
+    /// (only possible with `SweepLimit::Accept`).
+    pub unconverged_steps: usize,
+    /// H(y0), if the system knows H.
+    pub energy_start: Option<f64>,
+    /// H(y(T)).
+    pub energy_end: Option<f64>,
+    /// max over the observed steps of |H − H0| / max(|H0|, tiny) (every step when
+    /// `energy_every` is 1).
+    pub max_energy_error: Option<f64>,
+}
+
+/// Options of [`integrate`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IntegrateOptions {
+    /// Evaluate H every this many steps for `max_energy_error` (0: only at the end).
+    pub energy_every: usize,
+    /// Call the observer every this many steps (0: never). It always sees t0 and T.
+    pub observe_every: usize,
+}
+
+impl Default for IntegrateOptions {
+    fn default() -> Self {
+        IntegrateOptions {
+            energy_every: 1,
+            observe_every: 0,
+        }
+    }
+}
+
+/// Integrates from (t0, y) to t_end with the stepper's step size h, in place.
+///
+/// Takes ⌈(t_end − t0)/h⌉ steps; if h does not divide the interval (to 1e−9 relative), the
+/// last step is shortened (its φ-bank is built once, then the original h restored). The
+/// observer receives (t, y, H(y)).
+///
+/// # Errors
+/// [`Error::InvalidInput`] if t0 or t_end is not finite or t_end < t0, and any step error
+/// (the state is left at the last successful step).
+pub fn integrate<S: System>(
+    stepper: &mut EcStepper<S>,
+    t0: f64,
+    t_end: f64,
+    y: &mut [f64],
+    options: IntegrateOptions,
+    mut observer: impl FnMut(f64, &[f64], Option<f64>),
+) -> Result<Report> {
+    if !t0.is_finite() || !t_end.is_finite() {
+        return Err(Error::InvalidInput(format!(
+            "t0 = {t0} and t_end = {t_end} must be finite"
+        )));
+    }
+    if t_end < t0 {
+        return Err(Error::InvalidInput(format!(
+            "t_end = {t_end} is before t0 = {t0}"
+        )));
+    }
+    let h = stepper.step_size();
+    let span = t_end - t0;
+    let ratio = span / h;
+    let n_full = (ratio * (1.0 + 1e-9)).floor() as usize;
+    let rest = span - n_full as f64 * h;
+    let extra = rest > 1e-9 * h.max(span);
+    let steps = n_full + usize::from(extra);
+    let e0 = stepper.system().energy(y);
+    let scale = e0.map(|e| e.abs().max(f64::MIN_POSITIVE));
+    let mut report = Report {
+        t_end: t0,
+        steps: 0,
+        g_evals: 0,
+        sweeps: 0,
+        max_sweeps: 0,
+        unconverged_steps: 0,
+        energy_start: e0,
+        energy_end: e0,
+        max_energy_error: e0.map(|_| 0.0),
+    };
+    if options.observe_every > 0 {
+        observer(t0, y, e0);
+    }
+    for n in 1..=steps {
+        let last_short = extra && n == steps;
+        if last_short {
+            stepper.set_step_size(rest)?;
+        }
+        let rep = stepper.step(y);
+        if last_short {
+            stepper.set_step_size(h)?;
+        }
+        let rep = rep?;
+        report.steps = n;
+        report.g_evals += rep.g_evals;
+        report.sweeps += rep.sweeps;
+        report.max_sweeps = report.max_sweeps.max(rep.sweeps);
+        report.unconverged_steps += usize::from(!rep.converged);
+        let t = if n == steps { t_end } else { t0 + n as f64 * h };
+        report.t_end = t;
+        let check_energy =
+            n == steps || (options.energy_every > 0 && n % options.energy_every == 0);
+        let observe = options.observe_every > 0 && (n % options.observe_every == 0 || n == steps);
+        if check_energy || observe {
+            let e = stepper.system().energy(y);
+            if let (Some(e), Some(e0), Some(sc), Some(m)) =
+                (e, e0, scale, report.max_energy_error.as_mut())
+            {
+                *m = m.max((e - e0).abs() / sc);
+            }
+            if n == steps {
+                report.energy_end = e;
+            }
+            if observe {
+                observer(t, y, e);
+            }
+        }
+    }
+    Ok(report)
+}

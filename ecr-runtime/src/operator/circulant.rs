@@ -1,0 +1,342 @@
+//! Circulant operators (periodic convolutions, Fourier pseudospectral derivatives), by FFT.
+
+use std::fmt;
+use std::ops::Range;
+use std::sync::{Arc, Mutex};
+
+use num_complex::Complex64;
+use rustfft::{Fft, FftPlanner};
+
+use super::skew::{SkewGenerator, SpectralBasis};
+use super::{
+    LinearOperator, PhiBank, apply_shape, check_bank_args, check_bank_values, combine_shape,
+};
+use crate::phi::phi_complex;
+use crate::{Error, Result};
+
+/// Relative asymmetry of the first column tolerated by [`SkewGenerator::real_spectrum`].
+const SYMMETRY_TOL: f64 = 1e-12;
+
+/// The discrete Fourier basis of length n: `û = F u` (forward FFT), `u = F⁻¹ û` (inverse FFT
+/// divided by n). Circulant matrices are diagonal in it.
+#[derive(Clone)]
+pub struct FourierBasis {
+    n: usize,
+    fwd: Arc<dyn Fft<f64>>,
+    inv: Arc<dyn Fft<f64>>,
+}
+
+impl fmt::Debug for FourierBasis {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("FourierBasis").field("n", &self.n).finish()
+    }
+}
+
+impl FourierBasis {
+    fn new(n: usize) -> Self {
+        let mut planner = FftPlanner::new();
+        FourierBasis {
+            n,
+            fwd: planner.plan_fft_forward(n),
+            inv: planner.plan_fft_inverse(n),
+        }
+    }
+
+    fn scratch_len(&self) -> usize {
+        self.fwd
+            .get_inplace_scratch_len()
+            .max(self.inv.get_inplace_scratch_len())
+    }
+}
+
+impl SpectralBasis for FourierBasis {
+    /// FFT scratch.
+    type Scratch = Vec<Complex64>;
+
+    fn dim(&self) -> usize {
+        self.n
+    }
+
+    fn scratch(&self) -> Vec<Complex64> {
+        vec![Complex64::new(0.0, 0.0); self.scratch_len()]
+    }
+
+    fn forward(&self, u: &mut [Complex64], s: &mut Vec<Complex64>) {
+        self.fwd.process_with_scratch(u, s);
+    }
+
+    fn inverse(&self, u: &mut [Complex64], s: &mut Vec<Complex64>) {
+        self.inv.process_with_scratch(u, s);
+        let scale = 1.0 / self.n as f64;
+        for v in u.iter_mut() {
+            *v = v.scale(scale);
+        }
+    }
+}
+
+/// The circulant matrix with first column `c`: `C_{jk} = c[(j − k) mod n]`, i.e. `C x = c ⊛ x`
+/// (periodic convolution). Its eigenvalues are `λ = F c` (DFT), with the Fourier vectors as
+/// eigenvectors, so `φ_k(τhC) = F⁻¹ diag(φ_k(τhλ)) F`: banks store `φ_k(τ_i h λ_m)` per mode and
+/// `combine` costs one FFT per input vector and one inverse FFT per output block.
+pub struct Circulant {
+    c: Vec<f64>,
+    lambda: Vec<Complex64>,
+    basis: FourierBasis,
+    /// Buffers for [`LinearOperator::apply`], which has no workspace argument.
+    apply_scratch: Mutex<(Vec<Complex64>, Vec<Complex64>)>,
+}
+
+impl fmt::Debug for Circulant {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Circulant").field("c", &self.c).finish()
+    }
+}
+
+impl Clone for Circulant {
+    fn clone(&self) -> Self {
+        Circulant {
+            c: self.c.clone(),
+            lambda: self.lambda.clone(),
+            basis: self.basis.clone(),
+            apply_scratch: Mutex::new(self.new_apply_scratch()),
+        }
+    }
+}
+
+impl Circulant {
+    /// The circulant matrix with first column `c` (`n = c.len() ≥ 1`).
+    ///
+    /// # Errors
+    /// [`Error::InvalidInput`] if `c` is empty, [`Error::NonFinite`] if an entry is NaN/∞.
+    pub fn new(c: Vec<f64>) -> Result<Self> {
+        if c.is_empty() {
+            return Err(Error::InvalidInput(
+                "circulant operator needs a first column of length >= 1".into(),
+            ));
+        }
+        if c.iter().any(|v| !v.is_finite()) {
+            return Err(Error::NonFinite("circulant first column"));
+        }
+        let basis = FourierBasis::new(c.len());
+        let mut lambda: Vec<Complex64> = c.iter().map(|&v| Complex64::new(v, 0.0)).collect();
+        let mut scratch = basis.scratch();
+        basis.forward(&mut lambda, &mut scratch);
+        let mut op = Circulant {
+            c,
+            lambda,
+            basis,
+            apply_scratch: Mutex::new((Vec::new(), Vec::new())),
+        };
+        op.apply_scratch = Mutex::new(op.new_apply_scratch());
+        Ok(op)
+    }
+
+    fn new_apply_scratch(&self) -> (Vec<Complex64>, Vec<Complex64>) {
+        (
+            vec![Complex64::new(0.0, 0.0); self.c.len()],
+            self.basis.scratch(),
+        )
+    }
+
+    /// The first column `c`.
+    pub fn first_column(&self) -> &[f64] {
+        &self.c
+    }
+
+    /// The eigenvalues `λ_m = Σ_j c_j e^{−2πi jm/n}` (the DFT of `c`).
+    pub fn eigenvalues(&self) -> &[Complex64] {
+        &self.lambda
+    }
+
+    /// `true` if `c[j] = c[(n − j) mod n]` to a relative `1e−12` (then C is symmetric and
+    /// its eigenvalues are real).
+    pub fn is_symmetric(&self) -> bool {
+        let n = self.c.len();
+        let scale = self.c.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        (1..n).all(|j| (self.c[j] - self.c[n - j]).abs() <= SYMMETRY_TOL * scale)
+    }
+}
+
+/// φ-bank of [`Circulant`]: `φ_k(τ_i h λ_m)` per Fourier mode.
+#[derive(Debug, Clone)]
+pub struct CirculantBank {
+    len: usize,
+    p: usize,
+    /// `phis[((i (p+1) + k) n + mode] = φ_k(τ_i h λ_mode)`.
+    phis: Vec<Complex64>,
+    basis: FourierBasis,
+}
+
+/// Scratch of [`CirculantBank`]: spectra of the inputs, one output buffer, FFT scratch.
+#[derive(Debug, Clone)]
+pub struct CirculantWorkspace {
+    spec: Vec<Complex64>,
+    buf: Vec<Complex64>,
+    scratch: Vec<Complex64>,
+}
+
+impl LinearOperator for Circulant {
+    type Bank = CirculantBank;
+
+    fn dim(&self) -> usize {
+        self.c.len()
+    }
+
+    /// `y = c ⊛ x` by FFT (O(n log n)); uses internal buffers behind a mutex, so concurrent
+    /// calls on one operator serialise.
+    fn apply(&self, x: &[f64], y: &mut [f64]) {
+        debug_assert_eq!(x.len(), self.c.len());
+        debug_assert_eq!(y.len(), self.c.len());
+        let mut guard = self
+            .apply_scratch
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner());
+        let (buf, scratch) = &mut *guard;
+        for (b, xv) in buf.iter_mut().zip(x) {
+            *b = Complex64::new(*xv, 0.0);
+        }
+        self.basis.forward(buf, scratch);
+        for (b, l) in buf.iter_mut().zip(&self.lambda) {
+            *b *= l;
+        }
+        self.basis.inverse(buf, scratch);
+        for (yv, b) in y.iter_mut().zip(buf.iter()) {
+            *yv = b.re;
+        }
+    }
+
+    fn phi_bank(&self, h: f64, taus: &[f64], p: usize) -> Result<CirculantBank> {
+        check_bank_args(h, taus)?;
+        let n = self.c.len();
+        let mut phis = vec![Complex64::new(0.0, 0.0); taus.len() * (p + 1) * n];
+        let mut buf = vec![Complex64::new(0.0, 0.0); p + 1];
+        for (i, tau) in taus.iter().enumerate() {
+            let th = tau * h;
+            for (mode, l) in self.lambda.iter().enumerate() {
+                phi_complex(Complex64::new(th * l.re, th * l.im), &mut buf);
+                for (k, v) in buf.iter().enumerate() {
+                    phis[(i * (p + 1) + k) * n + mode] = *v;
+                }
+            }
+        }
+        check_bank_values(phis.iter().flat_map(|v| [v.re, v.im]))?;
+        Ok(CirculantBank {
+            len: taus.len(),
+            p,
+            phis,
+            basis: self.basis.clone(),
+        })
+    }
+}
+
+/// `buf = f0 ⊙ s0 + Σ_k c_k f_{k+1} ⊙ s_{k+1}` on spectra (shared with the skew-pair bank).
+#[inline]
+pub(super) fn spectral_block(
+    buf: &mut [Complex64],
+    f: &[Complex64],
+    spec: &[Complex64],
+    coefs: &[f64],
+) {
+    let n = buf.len();
+    for ((b, fv), sv) in buf.iter_mut().zip(&f[..n]).zip(&spec[..n]) {
+        *b = fv * sv;
+    }
+    for (k, c) in coefs.iter().enumerate() {
+        let fk = &f[(k + 1) * n..(k + 2) * n];
+        let sk = &spec[(k + 1) * n..(k + 2) * n];
+        for ((b, fv), sv) in buf.iter_mut().zip(fk).zip(sk) {
+            *b += (fv * sv).scale(*c);
+        }
+    }
+}
+
+impl PhiBank for CirculantBank {
+    type Workspace = CirculantWorkspace;
+
+    fn dim(&self) -> usize {
+        self.basis.n
+    }
+    fn len(&self) -> usize {
+        self.len
+    }
+    fn p(&self) -> usize {
+        self.p
+    }
+    fn workspace(&self) -> CirculantWorkspace {
+        let n = self.basis.n;
+        CirculantWorkspace {
+            spec: vec![Complex64::new(0.0, 0.0); (self.p + 1) * n],
+            buf: vec![Complex64::new(0.0, 0.0); n],
+            scratch: self.basis.scratch(),
+        }
+    }
+
+    fn combine(
+        &self,
+        indices: Range<usize>,
+        y0: &[f64],
+        g: &[f64],
+        coef: &[f64],
+        out: &mut [f64],
+        ws: &mut CirculantWorkspace,
+    ) {
+        let n = self.basis.n;
+        let m = combine_shape(n, self.len, self.p, &indices, y0, g, coef, out);
+        if indices.is_empty() {
+            return;
+        }
+        let inputs = std::iter::once(y0).chain(g.chunks_exact(n));
+        for (s, x) in ws.spec.chunks_exact_mut(n).zip(inputs) {
+            for (sv, xv) in s.iter_mut().zip(x) {
+                *sv = Complex64::new(*xv, 0.0);
+            }
+            self.basis.forward(s, &mut ws.scratch);
+        }
+        let stride = (self.p + 1) * n;
+        for ((j, i), o) in indices.enumerate().zip(out.chunks_exact_mut(n)) {
+            let f = &self.phis[i * stride..(i + 1) * stride];
+            spectral_block(&mut ws.buf, f, &ws.spec, &coef[j * m..(j + 1) * m]);
+            self.basis.inverse(&mut ws.buf, &mut ws.scratch);
+            for (ov, b) in o.iter_mut().zip(&ws.buf) {
+                *ov = b.re;
+            }
+        }
+    }
+
+    fn apply(&self, i: usize, k: usize, x: &[f64], out: &mut [f64], ws: &mut CirculantWorkspace) {
+        let n = self.basis.n;
+        apply_shape(n, self.len, self.p, i, k, x, out);
+        let f = &self.phis[(i * (self.p + 1) + k) * n..(i * (self.p + 1) + k + 1) * n];
+        for (b, xv) in ws.buf.iter_mut().zip(x) {
+            *b = Complex64::new(*xv, 0.0);
+        }
+        self.basis.forward(&mut ws.buf, &mut ws.scratch);
+        for (b, fv) in ws.buf.iter_mut().zip(f) {
+            *b *= fv;
+        }
+        self.basis.inverse(&mut ws.buf, &mut ws.scratch);
+        for (ov, b) in out.iter_mut().zip(&ws.buf) {
+            *ov = b.re;
+        }
+    }
+}
+
+impl SkewGenerator for Circulant {
+    type Basis = FourierBasis;
+
+    /// The real eigenvalues `Re(F c)` of a symmetric circulant.
+    ///
+    /// # Errors
+    /// [`Error::InvalidInput`] if `c[j] ≠ c[(n − j) mod n]` beyond a relative `1e−12`.
+    fn real_spectrum(&self) -> Result<(Vec<f64>, FourierBasis)> {
+        if !self.is_symmetric() {
+            return Err(Error::InvalidInput(
+                "circulant generator of a skew pair must be symmetric: c[j] = c[n - j]".into(),
+            ));
+        }
+        Ok((
+            self.lambda.iter().map(|l| l.re).collect(),
+            self.basis.clone(),
+        ))
+    }
+}

@@ -1,0 +1,553 @@
+//! Dense operators: general (dynamic and static size) and symmetric.
+
+use std::ops::Range;
+use std::sync::Arc;
+
+use nalgebra::{DMatrix, DVectorView, DVectorViewMut, SMatrix, SVector};
+use num_complex::Complex64;
+
+use super::simple::diagonal_block;
+use super::skew::{SkewGenerator, SpectralBasis};
+use super::{
+    LinearOperator, PhiBank, apply_shape, check_bank_args, check_bank_values, combine_shape,
+};
+use crate::phi::{
+    check_symmetric, phi_dense, phi_dense_static, phi_real, symmetric_eigen, validate_matrix,
+};
+use crate::{Error, Result};
+
+/// `y = M x` (or `y = α M x + β y`) on slices, without allocation.
+#[inline]
+fn gemv(y: &mut [f64], alpha: f64, m: &DMatrix<f64>, x: &[f64], beta: f64) {
+    let n = x.len();
+    let mut yv = DVectorViewMut::from_slice(y, m.nrows());
+    yv.gemv(alpha, m, &DVectorView::from_slice(x, n), beta);
+}
+
+/// `y = Mᵀ x` on slices, without allocation.
+#[inline]
+fn gemv_tr(y: &mut [f64], m: &DMatrix<f64>, x: &[f64]) {
+    let n = x.len();
+    let mut yv = DVectorViewMut::from_slice(y, m.ncols());
+    yv.gemv_tr(1.0, m, &DVectorView::from_slice(x, n), 0.0);
+}
+
+/// A general dense matrix `A` (non-normal allowed); φ by scaling and modified squaring
+/// ([`phi_dense`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Dense {
+    a: DMatrix<f64>,
+}
+
+impl Dense {
+    /// Wraps a square matrix.
+    ///
+    /// # Errors
+    /// [`Error::NotSquare`], [`Error::NonFinite`].
+    pub fn new(a: DMatrix<f64>) -> Result<Self> {
+        validate_matrix(&a, "dense operator")?;
+        Ok(Dense { a })
+    }
+
+    /// The `d × d` matrix with the given entries in row-major order.
+    ///
+    /// # Errors
+    /// [`Error::DimensionMismatch`] if `data.len() ≠ d²`, [`Error::NonFinite`].
+    pub fn from_row_slice(d: usize, data: &[f64]) -> Result<Self> {
+        Self::new(matrix_from_rows(d, data)?)
+    }
+
+    /// The matrix.
+    pub fn matrix(&self) -> &DMatrix<f64> {
+        &self.a
+    }
+}
+
+/// `DMatrix` from `d²` row-major entries.
+fn matrix_from_rows(d: usize, data: &[f64]) -> Result<DMatrix<f64>> {
+    if data.len() != d * d {
+        return Err(Error::DimensionMismatch {
+            what: "matrix entries (dim^2)",
+            expected: d * d,
+            found: data.len(),
+        });
+    }
+    Ok(DMatrix::from_row_slice(d, d, data))
+}
+
+/// φ-bank of [`Dense`]: the matrices `φ_k(τ_i h A)`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DenseBank {
+    dim: usize,
+    len: usize,
+    p: usize,
+    /// `phis[i (p+1) + k] = φ_k(τ_i h A)`.
+    phis: Vec<DMatrix<f64>>,
+}
+
+impl DenseBank {
+    /// The matrix `φ_k(τ_i h A)`.
+    ///
+    /// # Panics
+    /// If `i ≥ len()` or `k > p()`.
+    pub fn matrix(&self, i: usize, k: usize) -> &DMatrix<f64> {
+        assert!(
+            i < self.len && k <= self.p,
+            "DenseBank::matrix: index out of range"
+        );
+        &self.phis[i * (self.p + 1) + k]
+    }
+}
+
+impl LinearOperator for Dense {
+    type Bank = DenseBank;
+
+    fn dim(&self) -> usize {
+        self.a.nrows()
+    }
+
+    fn apply(&self, x: &[f64], y: &mut [f64]) {
+        debug_assert_eq!(x.len(), self.a.ncols());
+        debug_assert_eq!(y.len(), self.a.nrows());
+        gemv(y, 1.0, &self.a, x, 0.0);
+    }
+
+    fn phi_bank(&self, h: f64, taus: &[f64], p: usize) -> Result<DenseBank> {
+        check_bank_args(h, taus)?;
+        let mut phis = Vec::with_capacity(taus.len() * (p + 1));
+        for tau in taus {
+            let th = tau * h;
+            phis.extend(phi_dense(&(&self.a * th), p)?);
+        }
+        Ok(DenseBank {
+            dim: self.a.nrows(),
+            len: taus.len(),
+            p,
+            phis,
+        })
+    }
+}
+
+impl PhiBank for DenseBank {
+    type Workspace = ();
+
+    fn dim(&self) -> usize {
+        self.dim
+    }
+    fn len(&self) -> usize {
+        self.len
+    }
+    fn p(&self) -> usize {
+        self.p
+    }
+    fn workspace(&self) {}
+
+    fn combine(
+        &self,
+        indices: Range<usize>,
+        y0: &[f64],
+        g: &[f64],
+        coef: &[f64],
+        out: &mut [f64],
+        _ws: &mut (),
+    ) {
+        let d = self.dim;
+        let m = combine_shape(d, self.len, self.p, &indices, y0, g, coef, out);
+        if d == 0 {
+            return;
+        }
+        for ((j, i), o) in indices.enumerate().zip(out.chunks_exact_mut(d)) {
+            let base = i * (self.p + 1);
+            gemv(o, 1.0, &self.phis[base], y0, 0.0);
+            for (k, gk) in g.chunks_exact(d).enumerate() {
+                gemv(o, coef[j * m + k], &self.phis[base + k + 1], gk, 1.0);
+            }
+        }
+    }
+
+    fn apply(&self, i: usize, k: usize, x: &[f64], out: &mut [f64], _ws: &mut ()) {
+        apply_shape(self.dim, self.len, self.p, i, k, x, out);
+        if self.dim > 0 {
+            gemv(out, 1.0, &self.phis[i * (self.p + 1) + k], x, 0.0);
+        }
+    }
+}
+
+/// A dense matrix of static size `D × D`: the bank stores `SMatrix` values and applies them
+/// with static matrix–vector products (no heap in `combine`/`apply`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct DenseStatic<const D: usize> {
+    a: SMatrix<f64, D, D>,
+}
+
+impl<const D: usize> DenseStatic<D> {
+    /// Wraps a static matrix.
+    ///
+    /// # Errors
+    /// [`Error::NonFinite`].
+    pub fn new(a: SMatrix<f64, D, D>) -> Result<Self> {
+        if a.iter().any(|v| !v.is_finite()) {
+            return Err(Error::NonFinite("dense operator"));
+        }
+        Ok(DenseStatic { a })
+    }
+
+    /// The matrix with the given `D²` entries in row-major order.
+    ///
+    /// # Errors
+    /// [`Error::DimensionMismatch`] if `data.len() ≠ D²`, [`Error::NonFinite`].
+    pub fn from_row_slice(data: &[f64]) -> Result<Self> {
+        if data.len() != D * D {
+            return Err(Error::DimensionMismatch {
+                what: "matrix entries (D^2)",
+                expected: D * D,
+                found: data.len(),
+            });
+        }
+        Self::new(SMatrix::from_row_slice(data))
+    }
+
+    /// The matrix.
+    pub fn matrix(&self) -> &SMatrix<f64, D, D> {
+        &self.a
+    }
+}
+
+/// φ-bank of [`DenseStatic`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct DenseStaticBank<const D: usize> {
+    len: usize,
+    p: usize,
+    /// `phis[i (p+1) + k] = φ_k(τ_i h A)`.
+    phis: Vec<SMatrix<f64, D, D>>,
+}
+
+impl<const D: usize> DenseStaticBank<D> {
+    /// The matrix `φ_k(τ_i h A)`.
+    ///
+    /// # Panics
+    /// If `i ≥ len()` or `k > p()`.
+    pub fn matrix(&self, i: usize, k: usize) -> &SMatrix<f64, D, D> {
+        assert!(
+            i < self.len && k <= self.p,
+            "DenseStaticBank::matrix: index out of range"
+        );
+        &self.phis[i * (self.p + 1) + k]
+    }
+}
+
+impl<const D: usize> LinearOperator for DenseStatic<D> {
+    type Bank = DenseStaticBank<D>;
+
+    fn dim(&self) -> usize {
+        D
+    }
+
+    fn apply(&self, x: &[f64], y: &mut [f64]) {
+        let v = SVector::<f64, D>::from_column_slice(x);
+        y.copy_from_slice((self.a * v).as_slice());
+    }
+
+    fn phi_bank(&self, h: f64, taus: &[f64], p: usize) -> Result<DenseStaticBank<D>> {
+        check_bank_args(h, taus)?;
+        let mut phis = Vec::with_capacity(taus.len() * (p + 1));
+        for tau in taus {
+            let th = tau * h;
+            phis.extend(phi_dense_static(&(self.a * th), p)?);
+        }
+        Ok(DenseStaticBank {
+            len: taus.len(),
+            p,
+            phis,
+        })
+    }
+}
+
+impl<const D: usize> PhiBank for DenseStaticBank<D> {
+    type Workspace = ();
+
+    fn dim(&self) -> usize {
+        D
+    }
+    fn len(&self) -> usize {
+        self.len
+    }
+    fn p(&self) -> usize {
+        self.p
+    }
+    fn workspace(&self) {}
+
+    fn combine(
+        &self,
+        indices: Range<usize>,
+        y0: &[f64],
+        g: &[f64],
+        coef: &[f64],
+        out: &mut [f64],
+        _ws: &mut (),
+    ) {
+        let m = combine_shape(D, self.len, self.p, &indices, y0, g, coef, out);
+        if D == 0 {
+            return;
+        }
+        let y = SVector::<f64, D>::from_column_slice(y0);
+        for ((j, i), o) in indices.enumerate().zip(out.chunks_exact_mut(D)) {
+            let base = i * (self.p + 1);
+            let mut acc = self.phis[base] * y;
+            for (k, gk) in g.chunks_exact(D).enumerate() {
+                let gv = SVector::<f64, D>::from_column_slice(gk);
+                acc.gemv(coef[j * m + k], &self.phis[base + k + 1], &gv, 1.0);
+            }
+            o.copy_from_slice(acc.as_slice());
+        }
+    }
+
+    fn apply(&self, i: usize, k: usize, x: &[f64], out: &mut [f64], _ws: &mut ()) {
+        apply_shape(D, self.len, self.p, i, k, x, out);
+        let v = SVector::<f64, D>::from_column_slice(x);
+        out.copy_from_slice((self.phis[i * (self.p + 1) + k] * v).as_slice());
+    }
+}
+
+/// A real symmetric matrix `A = QΛQᵀ`: φ through the eigendecomposition.
+///
+/// Banks store `φ_k(τ_i h λ_t)` per eigenvalue; `combine` transforms `y0` and the `g_k` once
+/// (`Qᵀ·`, shared by all output blocks) and pays one `Q·` product per output block.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Symmetric {
+    a: DMatrix<f64>,
+    q: Arc<DMatrix<f64>>,
+    lambda: Vec<f64>,
+}
+
+impl Symmetric {
+    /// Decomposes a symmetric matrix (it is symmetrised, `(A + Aᵀ)/2`, first).
+    ///
+    /// # Errors
+    /// [`Error::NotSquare`], [`Error::NonFinite`], [`Error::InvalidInput`] if
+    /// `max |a_ij − a_ji| > 1e−12 · max |a_ij|`, [`Error::Numerical`] if the eigensolver fails.
+    pub fn new(a: DMatrix<f64>) -> Result<Self> {
+        validate_matrix(&a, "symmetric operator")?;
+        check_symmetric(&a, "symmetric operator")?;
+        let (lambda, q) = symmetric_eigen(&a)?;
+        Ok(Symmetric {
+            a,
+            q: Arc::new(q),
+            lambda,
+        })
+    }
+
+    /// The `d × d` symmetric matrix with the given entries in row-major order.
+    ///
+    /// # Errors
+    /// [`Error::DimensionMismatch`] if `data.len() ≠ d²`, otherwise as [`Symmetric::new`].
+    pub fn from_row_slice(d: usize, data: &[f64]) -> Result<Self> {
+        Self::new(matrix_from_rows(d, data)?)
+    }
+
+    /// The matrix.
+    pub fn matrix(&self) -> &DMatrix<f64> {
+        &self.a
+    }
+
+    /// The eigenvalues λ (in the order of the columns of Q).
+    pub fn eigenvalues(&self) -> &[f64] {
+        &self.lambda
+    }
+
+    /// The orthogonal matrix of eigenvectors Q.
+    pub fn eigenvectors(&self) -> &DMatrix<f64> {
+        &self.q
+    }
+}
+
+/// φ-bank of [`Symmetric`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct SymmetricBank {
+    dim: usize,
+    len: usize,
+    p: usize,
+    q: Arc<DMatrix<f64>>,
+    /// `phis[((i (p+1) + k) d + t] = φ_k(τ_i h λ_t)`.
+    phis: Vec<f64>,
+}
+
+/// Scratch of [`SymmetricBank`]: the transformed vectors.
+#[derive(Debug, Clone)]
+pub struct SymmetricWorkspace {
+    /// `Qᵀ y0`
+    yhat: Vec<f64>,
+    /// `Qᵀ g_k`, `k < p`
+    ghat: Vec<f64>,
+    /// one block in the eigenbasis
+    w: Vec<f64>,
+}
+
+impl LinearOperator for Symmetric {
+    type Bank = SymmetricBank;
+
+    fn dim(&self) -> usize {
+        self.a.nrows()
+    }
+
+    fn apply(&self, x: &[f64], y: &mut [f64]) {
+        debug_assert_eq!(x.len(), self.a.ncols());
+        debug_assert_eq!(y.len(), self.a.nrows());
+        gemv(y, 1.0, &self.a, x, 0.0);
+    }
+
+    fn phi_bank(&self, h: f64, taus: &[f64], p: usize) -> Result<SymmetricBank> {
+        check_bank_args(h, taus)?;
+        let d = self.lambda.len();
+        let mut phis = vec![0.0; taus.len() * (p + 1) * d];
+        let mut buf = vec![0.0; p + 1];
+        for (i, tau) in taus.iter().enumerate() {
+            let th = tau * h;
+            for (t, l) in self.lambda.iter().enumerate() {
+                phi_real(th * l, &mut buf);
+                for (k, v) in buf.iter().enumerate() {
+                    phis[(i * (p + 1) + k) * d + t] = *v;
+                }
+            }
+        }
+        check_bank_values(phis.iter().copied())?;
+        Ok(SymmetricBank {
+            dim: d,
+            len: taus.len(),
+            p,
+            q: Arc::clone(&self.q),
+            phis,
+        })
+    }
+}
+
+impl PhiBank for SymmetricBank {
+    type Workspace = SymmetricWorkspace;
+
+    fn dim(&self) -> usize {
+        self.dim
+    }
+    fn len(&self) -> usize {
+        self.len
+    }
+    fn p(&self) -> usize {
+        self.p
+    }
+    fn workspace(&self) -> SymmetricWorkspace {
+        SymmetricWorkspace {
+            yhat: vec![0.0; self.dim],
+            ghat: vec![0.0; self.dim * self.p],
+            w: vec![0.0; self.dim],
+        }
+    }
+
+    fn combine(
+        &self,
+        indices: Range<usize>,
+        y0: &[f64],
+        g: &[f64],
+        coef: &[f64],
+        out: &mut [f64],
+        ws: &mut SymmetricWorkspace,
+    ) {
+        let d = self.dim;
+        let m = combine_shape(d, self.len, self.p, &indices, y0, g, coef, out);
+        if d == 0 || indices.is_empty() {
+            return;
+        }
+        gemv_tr(&mut ws.yhat, &self.q, y0);
+        for (gk, gh) in g.chunks_exact(d).zip(ws.ghat.chunks_exact_mut(d)) {
+            gemv_tr(gh, &self.q, gk);
+        }
+        let stride = (self.p + 1) * d;
+        for ((j, i), o) in indices.enumerate().zip(out.chunks_exact_mut(d)) {
+            let f = &self.phis[i * stride..(i + 1) * stride];
+            diagonal_block(
+                &mut ws.w,
+                f,
+                d,
+                &ws.yhat,
+                &ws.ghat[..m * d],
+                &coef[j * m..(j + 1) * m],
+            );
+            gemv(o, 1.0, &self.q, &ws.w, 0.0);
+        }
+    }
+
+    fn apply(&self, i: usize, k: usize, x: &[f64], out: &mut [f64], ws: &mut SymmetricWorkspace) {
+        apply_shape(self.dim, self.len, self.p, i, k, x, out);
+        let d = self.dim;
+        if d == 0 {
+            return;
+        }
+        gemv_tr(&mut ws.yhat, &self.q, x);
+        let f = &self.phis[(i * (self.p + 1) + k) * d..(i * (self.p + 1) + k + 1) * d];
+        for ((w, yh), fv) in ws.w.iter_mut().zip(&ws.yhat).zip(f) {
+            *w = fv * yh;
+        }
+        gemv(out, 1.0, &self.q, &ws.w, 0.0);
+    }
+}
+
+/// The orthonormal eigenbasis Q of a symmetric matrix, acting on complex vectors
+/// (`û = Qᵀu`, `u = Qû`, real and imaginary parts separately).
+#[derive(Debug, Clone, PartialEq)]
+pub struct EigenBasis {
+    q: Arc<DMatrix<f64>>,
+}
+
+impl SpectralBasis for EigenBasis {
+    /// Real buffers for the parts of one vector.
+    type Scratch = (Vec<f64>, Vec<f64>);
+
+    fn dim(&self) -> usize {
+        self.q.nrows()
+    }
+
+    fn scratch(&self) -> Self::Scratch {
+        (vec![0.0; self.q.nrows()], vec![0.0; self.q.nrows()])
+    }
+
+    fn forward(&self, u: &mut [Complex64], s: &mut Self::Scratch) {
+        transform(u, s, |y, x| gemv_tr(y, &self.q, x));
+    }
+
+    fn inverse(&self, u: &mut [Complex64], s: &mut Self::Scratch) {
+        transform(u, s, |y, x| gemv(y, 1.0, &self.q, x, 0.0));
+    }
+}
+
+/// Applies the real map `f` to the real and imaginary parts of `u`.
+fn transform(
+    u: &mut [Complex64],
+    (a, b): &mut (Vec<f64>, Vec<f64>),
+    f: impl Fn(&mut [f64], &[f64]),
+) {
+    for (av, uv) in a.iter_mut().zip(u.iter()) {
+        *av = uv.re;
+    }
+    f(b, a);
+    for (uv, bv) in u.iter_mut().zip(b.iter()) {
+        uv.re = *bv;
+    }
+    for (av, uv) in a.iter_mut().zip(u.iter()) {
+        *av = uv.im;
+    }
+    f(b, a);
+    for (uv, bv) in u.iter_mut().zip(b.iter()) {
+        uv.im = *bv;
+    }
+}
+
+impl SkewGenerator for Symmetric {
+    type Basis = EigenBasis;
+
+    fn real_spectrum(&self) -> Result<(Vec<f64>, EigenBasis)> {
+        Ok((
+            self.lambda.clone(),
+            EigenBasis {
+                q: Arc::clone(&self.q),
+            },
+        ))
+    }
+}

@@ -1,0 +1,279 @@
+//! Linear operators `A` of `y' = Ay + g(y)` and their banks of φ-functions.
+//!
+//! A [`LinearOperator`] applies `A` and, once per step size, precomputes a [`PhiBank`]: the
+//! operators `φ_k(τ_i h A)` (paper eq. `phi`) for the nodes `τ_i` and `k = 0..=p`. The ECrP
+//! stepper (paper eq. `EEPCr` with Gauss nodes; DESIGN.md §2) needs exactly
+//!
+//! ```text
+//! Y_i = φ₀(c_i hA) y₀ + h Σ_k c_i^{k+1} φ_{k+1}(c_i hA) G_k
+//! ```
+//!
+//! which is one [`PhiBank::combine`] call with `coef[j·m + k] = h c_i^{k+1}`.
+//!
+//! Each operator pays only for its structure ("model only what the problem requires"):
+//!
+//! | operator | `A` | bank | `combine` per output block |
+//! |---|---|---|---|
+//! | [`Zero`] | 0 | nothing (`φ_k = I/k!`) | O(m d) |
+//! | [`Scalar`] | `aI` | `(p+1)` numbers per τ | O(m d) |
+//! | [`Diagonal`] | `diag(d)` | `(p+1) d` numbers per τ | O(m d) |
+//! | [`Dense`], [`DenseStatic`] | general | `(p+1)` matrices per τ ([`phi_dense`](crate::phi::phi_dense)) | O(m d²) |
+//! | [`Symmetric`] | `QΛQᵀ` | `(p+1) d` numbers per τ | O(d²) (+ O(m d²) shared) |
+//! | [`Circulant`] | `c ⊛ ·` | `(p+1) d` complex numbers per τ | O(d log d) (+ O(m d log d) shared) |
+//! | [`SkewPair`] | `[[0, −C], [C, 0]]` | `(p+1) n` complex numbers per τ | as its generator `C` |
+//!
+//! ```
+//! use ecr_runtime::operator::{Diagonal, LinearOperator, PhiBank};
+//! # fn main() -> ecr_runtime::Result<()> {
+//! let a = Diagonal::new(vec![-1.0, -100.0])?;
+//! let bank = a.phi_bank(0.1, &[0.5, 1.0], 1)?;
+//! let mut ws = bank.workspace();
+//! let y0 = [1.0, 1.0];
+//! let mut y1 = [0.0; 2];
+//! // y1 = φ₀(hA) y0  (m = 0: no G terms), the exact flow of y' = Ay over one step.
+//! bank.combine(1..2, &y0, &[], &[], &mut y1, &mut ws);
+//! assert!((y1[0] - (-0.1f64).exp()).abs() < 1e-15);
+//! # Ok(()) }
+//! ```
+
+mod circulant;
+mod dense;
+mod simple;
+mod skew;
+
+pub use circulant::{Circulant, CirculantBank, CirculantWorkspace, FourierBasis};
+pub use dense::{
+    Dense, DenseBank, DenseStatic, DenseStaticBank, EigenBasis, Symmetric, SymmetricBank,
+    SymmetricWorkspace,
+};
+pub use simple::{Diagonal, DiagonalBank, Scalar, ScalarBank, Zero, ZeroBank};
+pub use skew::{SkewGenerator, SkewPair, SkewPairBank, SkewPairWorkspace, SpectralBasis};
+
+use std::ops::Range;
+
+use crate::{Error, Result};
+
+/// A linear operator `A: ℝᵈ → ℝᵈ` that can precompute its φ-functions.
+pub trait LinearOperator {
+    /// The precomputed φ-functions for one step size (see [`PhiBank`]).
+    type Bank: PhiBank;
+
+    /// The dimension `d`.
+    fn dim(&self) -> usize;
+
+    /// `y = A x`. Does not allocate.
+    ///
+    /// # Panics
+    /// May panic (debug builds check) if `x.len()` or `y.len()` is not [`dim`](Self::dim);
+    /// the steppers check lengths before calling.
+    fn apply(&self, x: &[f64], y: &mut [f64]);
+
+    /// `φ_k(τ_i h A)` for every `τ_i` in `taus` and `k = 0..=p`; called once per step size.
+    ///
+    /// `τ = 0` is allowed (`φ_k(0) = I/k!`). The nodes are usually in `[0, 1]`; any finite τ is
+    /// accepted (τ > 1 extrapolates the continuous solution).
+    ///
+    /// # Errors
+    /// [`Error::InvalidStepSize`] if `h` is not finite and positive, [`Error::NonFinite`] if a
+    /// τ is NaN or infinite, [`Error::Numerical`] if a φ-function overflows (eigenvalues far
+    /// in the right half-plane).
+    fn phi_bank(&self, h: f64, taus: &[f64], p: usize) -> Result<Self::Bank>;
+}
+
+/// The operators `φ_k(τ_i h A)`, `i < len()`, `k ≤ p()`, for one step size `h`.
+pub trait PhiBank {
+    /// Scratch memory (FFT buffers, transformed vectors, ...), allocated once by
+    /// [`workspace`](Self::workspace) and reused by every call.
+    type Workspace;
+
+    /// The dimension `d`.
+    fn dim(&self) -> usize;
+
+    /// The number of nodes τ.
+    fn len(&self) -> usize;
+
+    /// `true` if the bank has no nodes.
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The highest φ index available.
+    fn p(&self) -> usize;
+
+    /// Fresh scratch memory for [`combine`](Self::combine) and [`apply`](Self::apply).
+    fn workspace(&self) -> Self::Workspace;
+
+    /// For each `i` in `indices` (output block `j = i − indices.start`, `out.len() = d ·
+    /// indices.len()`):
+    ///
+    /// ```text
+    /// out_j = φ₀(τ_i hA) y0 + Σ_{k=0}^{m−1} coef[j·m + k] · φ_{k+1}(τ_i hA) g[k·d..(k+1)·d]
+    /// ```
+    ///
+    /// where `m = g.len()/d ≤ p` (DESIGN.md §2: the stage and step formulas of ECrP). Does not
+    /// allocate.
+    ///
+    /// # Panics
+    /// If the lengths are inconsistent (`indices` beyond `len()`, `y0.len() ≠ d`, `g.len()` not
+    /// a multiple of `d` or `m > p`, `coef.len() ≠ m · indices.len()`, `out.len() ≠ d ·
+    /// indices.len()`); [`validate_combine`](Self::validate_combine) reports the same
+    /// conditions as errors. The check is O(1).
+    fn combine(
+        &self,
+        indices: Range<usize>,
+        y0: &[f64],
+        g: &[f64],
+        coef: &[f64],
+        out: &mut [f64],
+        ws: &mut Self::Workspace,
+    );
+
+    /// Checks the arguments of [`combine`](Self::combine) without computing anything and
+    /// returns `m = g.len()/d`. Does not allocate unless it returns an error.
+    ///
+    /// # Errors
+    /// [`Error::InvalidInput`] for `indices` beyond `len()` or `g.len()` not a multiple of `d`,
+    /// [`Error::DimensionMismatch`] for `y0`, `out` or `coef` of the wrong length,
+    /// [`Error::InvalidParameter`] if `m > p()`.
+    fn validate_combine(
+        &self,
+        indices: &Range<usize>,
+        y0: &[f64],
+        g: &[f64],
+        coef: &[f64],
+        out: &[f64],
+    ) -> Result<usize> {
+        combine_shape_checked(self.dim(), self.len(), self.p(), indices, y0, g, coef, out)
+    }
+
+    /// `out = φ_k(τ_i h A) x`. Does not allocate.
+    ///
+    /// # Panics
+    /// If `i ≥ len()`, `k > p()` or `x.len()`, `out.len()` differ from `d`.
+    fn apply(&self, i: usize, k: usize, x: &[f64], out: &mut [f64], ws: &mut Self::Workspace);
+}
+
+/// Validates the arguments of [`LinearOperator::phi_bank`].
+pub(crate) fn check_bank_args(h: f64, taus: &[f64]) -> Result<()> {
+    if !(h.is_finite() && h > 0.0) {
+        return Err(Error::InvalidStepSize(h));
+    }
+    if taus.iter().any(|t| !t.is_finite()) {
+        return Err(Error::NonFinite("taus"));
+    }
+    Ok(())
+}
+
+/// `Err(Numerical)` if a bank entry overflowed.
+pub(crate) fn check_bank_values(values: impl IntoIterator<Item = f64>) -> Result<()> {
+    if values.into_iter().all(f64::is_finite) {
+        Ok(())
+    } else {
+        Err(Error::Numerical(
+            "phi-function overflow in the bank (eigenvalues of hA far in the right half-plane)"
+                .into(),
+        ))
+    }
+}
+
+/// Validates the shapes of a [`PhiBank::combine`] call and returns `m` (see
+/// [`PhiBank::validate_combine`]). Allocates only when returning an error.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn combine_shape_checked(
+    d: usize,
+    len: usize,
+    p: usize,
+    indices: &Range<usize>,
+    y0: &[f64],
+    g: &[f64],
+    coef: &[f64],
+    out: &[f64],
+) -> Result<usize> {
+    if indices.start > indices.end || indices.end > len {
+        return Err(Error::InvalidInput(format!(
+            "combine: node indices {indices:?} outside 0..{len}"
+        )));
+    }
+    let nb = indices.len();
+    if y0.len() != d {
+        return Err(Error::DimensionMismatch {
+            what: "combine: y0",
+            expected: d,
+            found: y0.len(),
+        });
+    }
+    if out.len() != d * nb {
+        return Err(Error::DimensionMismatch {
+            what: "combine: out (dim * number of nodes)",
+            expected: d * nb,
+            found: out.len(),
+        });
+    }
+    if d == 0 {
+        return Ok(0);
+    }
+    if g.len() % d != 0 {
+        return Err(Error::InvalidInput(format!(
+            "combine: g has length {}, not a multiple of the dimension {d}",
+            g.len()
+        )));
+    }
+    let m = g.len() / d;
+    if m > p {
+        return Err(Error::InvalidParameter(format!(
+            "combine: {m} g-blocks, but the bank holds phi_1..phi_{p} only"
+        )));
+    }
+    if coef.len() != m * nb {
+        return Err(Error::DimensionMismatch {
+            what: "combine: coef (g-blocks * number of nodes)",
+            expected: m * nb,
+            found: coef.len(),
+        });
+    }
+    Ok(m)
+}
+
+/// [`combine_shape_checked`], panicking on error (for [`PhiBank::combine`]).
+#[inline]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn combine_shape(
+    d: usize,
+    len: usize,
+    p: usize,
+    indices: &Range<usize>,
+    y0: &[f64],
+    g: &[f64],
+    coef: &[f64],
+    out: &[f64],
+) -> usize {
+    match combine_shape_checked(d, len, p, indices, y0, g, coef, out) {
+        Ok(m) => m,
+        Err(e) => panic!("{e}"),
+    }
+}
+
+/// Checks the arguments of [`PhiBank::apply`].
+#[inline]
+pub(crate) fn apply_shape(
+    d: usize,
+    len: usize,
+    p: usize,
+    i: usize,
+    k: usize,
+    x: &[f64],
+    out: &[f64],
+) {
+    assert!(i < len, "apply: node index {i} outside 0..{len}");
+    assert!(
+        k <= p,
+        "apply: phi_{k} requested, the bank holds phi_0..phi_{p}"
+    );
+    assert_eq!(x.len(), d, "apply: x has length {}, expected {d}", x.len());
+    assert_eq!(
+        out.len(),
+        d,
+        "apply: out has length {}, expected {d}",
+        out.len()
+    );
+}

@@ -1,0 +1,367 @@
+//! Operators with O(d) φ-banks: zero, scalar multiple of the identity, diagonal.
+
+use std::ops::Range;
+
+use nalgebra::DVector;
+
+use super::{
+    LinearOperator, PhiBank, apply_shape, check_bank_args, check_bank_values, combine_shape,
+};
+use crate::phi::{inv_factorial, phi_real};
+use crate::{Error, Result};
+
+/// `A = 0` in dimension `dim`: `φ_k(τhA) = I/k!` (the method reduces to HBVM, DESIGN.md §2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Zero {
+    dim: usize,
+}
+
+impl Zero {
+    /// The zero operator on `ℝ^dim` (cannot fail).
+    pub fn new(dim: usize) -> Self {
+        Zero { dim }
+    }
+}
+
+/// The (trivial) φ-bank of [`Zero`]: `φ_k = I/k!` for every node.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ZeroBank {
+    dim: usize,
+    len: usize,
+    p: usize,
+}
+
+impl LinearOperator for Zero {
+    type Bank = ZeroBank;
+
+    fn dim(&self) -> usize {
+        self.dim
+    }
+
+    fn apply(&self, x: &[f64], y: &mut [f64]) {
+        debug_assert_eq!(x.len(), self.dim);
+        y.fill(0.0);
+    }
+
+    fn phi_bank(&self, h: f64, taus: &[f64], p: usize) -> Result<ZeroBank> {
+        check_bank_args(h, taus)?;
+        Ok(ZeroBank {
+            dim: self.dim,
+            len: taus.len(),
+            p,
+        })
+    }
+}
+
+impl PhiBank for ZeroBank {
+    type Workspace = ();
+
+    fn dim(&self) -> usize {
+        self.dim
+    }
+    fn len(&self) -> usize {
+        self.len
+    }
+    fn p(&self) -> usize {
+        self.p
+    }
+    fn workspace(&self) {}
+
+    /// `out_j = y0 + Σ_k coef[j·m + k]/(k+1)! · g_k`.
+    fn combine(
+        &self,
+        indices: Range<usize>,
+        y0: &[f64],
+        g: &[f64],
+        coef: &[f64],
+        out: &mut [f64],
+        _ws: &mut (),
+    ) {
+        let d = self.dim;
+        let m = combine_shape(d, self.len, self.p, &indices, y0, g, coef, out);
+        if d == 0 {
+            return;
+        }
+        for (j, o) in out.chunks_exact_mut(d).enumerate() {
+            o.copy_from_slice(y0);
+            for (k, gk) in g.chunks_exact(d).enumerate() {
+                let c = coef[j * m + k] * inv_factorial(k + 1);
+                for (ot, gt) in o.iter_mut().zip(gk) {
+                    *ot += c * gt;
+                }
+            }
+        }
+    }
+
+    fn apply(&self, i: usize, k: usize, x: &[f64], out: &mut [f64], _ws: &mut ()) {
+        apply_shape(self.dim, self.len, self.p, i, k, x, out);
+        let c = inv_factorial(k);
+        for (o, xv) in out.iter_mut().zip(x) {
+            *o = c * xv;
+        }
+    }
+}
+
+/// `A = a I` in dimension `dim`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Scalar {
+    a: f64,
+    dim: usize,
+}
+
+impl Scalar {
+    /// `A = a I` on `ℝ^dim`.
+    ///
+    /// # Errors
+    /// [`Error::NonFinite`] if `a` is NaN or infinite.
+    pub fn new(a: f64, dim: usize) -> Result<Self> {
+        if !a.is_finite() {
+            return Err(Error::NonFinite("scalar operator a"));
+        }
+        Ok(Scalar { a, dim })
+    }
+
+    /// The scalar `a`.
+    pub fn value(&self) -> f64 {
+        self.a
+    }
+}
+
+/// φ-bank of [`Scalar`]: the numbers `φ_k(τ_i h a)`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScalarBank {
+    dim: usize,
+    len: usize,
+    p: usize,
+    /// `phis[i (p+1) + k] = φ_k(τ_i h a)`.
+    phis: Vec<f64>,
+}
+
+impl LinearOperator for Scalar {
+    type Bank = ScalarBank;
+
+    fn dim(&self) -> usize {
+        self.dim
+    }
+
+    fn apply(&self, x: &[f64], y: &mut [f64]) {
+        debug_assert_eq!(x.len(), self.dim);
+        debug_assert_eq!(y.len(), self.dim);
+        for (yv, xv) in y.iter_mut().zip(x) {
+            *yv = self.a * xv;
+        }
+    }
+
+    fn phi_bank(&self, h: f64, taus: &[f64], p: usize) -> Result<ScalarBank> {
+        check_bank_args(h, taus)?;
+        let mut phis = vec![0.0; taus.len() * (p + 1)];
+        for (tau, row) in taus.iter().zip(phis.chunks_exact_mut(p + 1)) {
+            phi_real(tau * h * self.a, row);
+        }
+        check_bank_values(phis.iter().copied())?;
+        Ok(ScalarBank {
+            dim: self.dim,
+            len: taus.len(),
+            p,
+            phis,
+        })
+    }
+}
+
+impl PhiBank for ScalarBank {
+    type Workspace = ();
+
+    fn dim(&self) -> usize {
+        self.dim
+    }
+    fn len(&self) -> usize {
+        self.len
+    }
+    fn p(&self) -> usize {
+        self.p
+    }
+    fn workspace(&self) {}
+
+    fn combine(
+        &self,
+        indices: Range<usize>,
+        y0: &[f64],
+        g: &[f64],
+        coef: &[f64],
+        out: &mut [f64],
+        _ws: &mut (),
+    ) {
+        let d = self.dim;
+        let m = combine_shape(d, self.len, self.p, &indices, y0, g, coef, out);
+        if d == 0 {
+            return;
+        }
+        for ((j, i), o) in indices.enumerate().zip(out.chunks_exact_mut(d)) {
+            let f = &self.phis[i * (self.p + 1)..(i + 1) * (self.p + 1)];
+            for (ot, yt) in o.iter_mut().zip(y0) {
+                *ot = f[0] * yt;
+            }
+            for (k, gk) in g.chunks_exact(d).enumerate() {
+                let c = coef[j * m + k] * f[k + 1];
+                for (ot, gt) in o.iter_mut().zip(gk) {
+                    *ot += c * gt;
+                }
+            }
+        }
+    }
+
+    fn apply(&self, i: usize, k: usize, x: &[f64], out: &mut [f64], _ws: &mut ()) {
+        apply_shape(self.dim, self.len, self.p, i, k, x, out);
+        let c = self.phis[i * (self.p + 1) + k];
+        for (o, xv) in out.iter_mut().zip(x) {
+            *o = c * xv;
+        }
+    }
+}
+
+/// `A = diag(d)`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Diagonal {
+    diag: Vec<f64>,
+}
+
+impl Diagonal {
+    /// `A = diag(diag)`.
+    ///
+    /// # Errors
+    /// [`Error::NonFinite`] if an entry is NaN or infinite.
+    pub fn new(diag: Vec<f64>) -> Result<Self> {
+        if diag.iter().any(|v| !v.is_finite()) {
+            return Err(Error::NonFinite("diagonal"));
+        }
+        Ok(Diagonal { diag })
+    }
+
+    /// `A = diag(v)` from an nalgebra vector.
+    ///
+    /// # Errors
+    /// As [`Diagonal::new`].
+    pub fn from_dvector(v: &DVector<f64>) -> Result<Self> {
+        Self::new(v.iter().copied().collect())
+    }
+
+    /// The diagonal entries.
+    pub fn entries(&self) -> &[f64] {
+        &self.diag
+    }
+}
+
+/// φ-bank of [`Diagonal`]: the numbers `φ_k(τ_i h d_t)`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DiagonalBank {
+    dim: usize,
+    len: usize,
+    p: usize,
+    /// `phis[((i (p+1) + k) d + t] = φ_k(τ_i h d_t)`.
+    phis: Vec<f64>,
+}
+
+impl LinearOperator for Diagonal {
+    type Bank = DiagonalBank;
+
+    fn dim(&self) -> usize {
+        self.diag.len()
+    }
+
+    fn apply(&self, x: &[f64], y: &mut [f64]) {
+        debug_assert_eq!(x.len(), self.diag.len());
+        debug_assert_eq!(y.len(), self.diag.len());
+        for ((yv, xv), dv) in y.iter_mut().zip(x).zip(&self.diag) {
+            *yv = dv * xv;
+        }
+    }
+
+    fn phi_bank(&self, h: f64, taus: &[f64], p: usize) -> Result<DiagonalBank> {
+        check_bank_args(h, taus)?;
+        let d = self.diag.len();
+        let mut phis = vec![0.0; taus.len() * (p + 1) * d];
+        let mut buf = vec![0.0; p + 1];
+        for (i, tau) in taus.iter().enumerate() {
+            let th = tau * h;
+            for (t, dv) in self.diag.iter().enumerate() {
+                phi_real(th * dv, &mut buf);
+                for (k, v) in buf.iter().enumerate() {
+                    phis[(i * (p + 1) + k) * d + t] = *v;
+                }
+            }
+        }
+        check_bank_values(phis.iter().copied())?;
+        Ok(DiagonalBank {
+            dim: d,
+            len: taus.len(),
+            p,
+            phis,
+        })
+    }
+}
+
+/// `o = f0 ⊙ y0 + Σ_k c_k f_{k+1} ⊙ g_k` for diagonal banks (shared with the symmetric bank).
+#[inline]
+pub(super) fn diagonal_block(
+    o: &mut [f64],
+    f: &[f64],
+    d: usize,
+    y0: &[f64],
+    g: &[f64],
+    coefs: &[f64],
+) {
+    for ((ot, ft), yt) in o.iter_mut().zip(&f[..d]).zip(y0) {
+        *ot = ft * yt;
+    }
+    for (k, (gk, c)) in g.chunks_exact(d).zip(coefs).enumerate() {
+        let fk = &f[(k + 1) * d..(k + 2) * d];
+        for ((ot, ft), gt) in o.iter_mut().zip(fk).zip(gk) {
+            *ot += c * ft * gt;
+        }
+    }
+}
+
+impl PhiBank for DiagonalBank {
+    type Workspace = ();
+
+    fn dim(&self) -> usize {
+        self.dim
+    }
+    fn len(&self) -> usize {
+        self.len
+    }
+    fn p(&self) -> usize {
+        self.p
+    }
+    fn workspace(&self) {}
+
+    fn combine(
+        &self,
+        indices: Range<usize>,
+        y0: &[f64],
+        g: &[f64],
+        coef: &[f64],
+        out: &mut [f64],
+        _ws: &mut (),
+    ) {
+        let d = self.dim;
+        let m = combine_shape(d, self.len, self.p, &indices, y0, g, coef, out);
+        if d == 0 {
+            return;
+        }
+        let stride = (self.p + 1) * d;
+        for ((j, i), o) in indices.enumerate().zip(out.chunks_exact_mut(d)) {
+            let f = &self.phis[i * stride..(i + 1) * stride];
+            diagonal_block(o, f, d, y0, g, &coef[j * m..(j + 1) * m]);
+        }
+    }
+
+    fn apply(&self, i: usize, k: usize, x: &[f64], out: &mut [f64], _ws: &mut ()) {
+        apply_shape(self.dim, self.len, self.p, i, k, x, out);
+        let d = self.dim;
+        let f = &self.phis[(i * (self.p + 1) + k) * d..(i * (self.p + 1) + k + 1) * d];
+        for ((o, xv), fv) in out.iter_mut().zip(x).zip(f) {
+            *o = fv * xv;
+        }
+    }
+}

@@ -1,0 +1,252 @@
+//! Systems y' = Ay + g(y) (paper eq. `IVP1`): the linear part as a structured
+//! [`LinearOperator`], the nonlinearity g, and the energy H when it is known.
+
+use crate::operator::{Dense, LinearOperator, Symmetric};
+use crate::{Error, Result};
+use nalgebra::DMatrix;
+
+/// A semilinear system y' = Ay + g(y) with a structured linear part.
+///
+/// Implement it for your own system, or use [`Semilinear`], [`Hamiltonian`] or
+/// [`GradientFlow`]. Steppers call [`nonlinear`](System::nonlinear) on the hot path with a
+/// scratch slice of [`scratch_len`](System::scratch_len) entries, so g can be evaluated
+/// without allocating.
+pub trait System {
+    /// The linear operator A.
+    type Op: LinearOperator;
+    /// The dimension d.
+    fn dim(&self) -> usize {
+        self.linear().dim()
+    }
+    /// The linear part A.
+    fn linear(&self) -> &Self::Op;
+    /// Writes g(y) into `out` (`y.len() == out.len() == dim()`); `scratch` has
+    /// [`scratch_len`](System::scratch_len) entries.
+    fn nonlinear(&self, y: &[f64], out: &mut [f64], scratch: &mut [f64]);
+    /// Scratch entries [`nonlinear`](System::nonlinear) needs (default 0).
+    fn scratch_len(&self) -> usize {
+        0
+    }
+    /// The energy H(y) (first integral or Lyapunov function), if known.
+    fn energy(&self, _y: &[f64]) -> Option<f64> {
+        None
+    }
+}
+
+impl<S: System + ?Sized> System for &S {
+    type Op = S::Op;
+    fn dim(&self) -> usize {
+        (**self).dim()
+    }
+    fn linear(&self) -> &Self::Op {
+        (**self).linear()
+    }
+    fn nonlinear(&self, y: &[f64], out: &mut [f64], scratch: &mut [f64]) {
+        (**self).nonlinear(y, out, scratch)
+    }
+    fn scratch_len(&self) -> usize {
+        (**self).scratch_len()
+    }
+    fn energy(&self, y: &[f64]) -> Option<f64> {
+        (**self).energy(y)
+    }
+}
+
+/// Plain semilinear system: an operator A, a closure for g and optionally one for H.
+pub struct Semilinear<A, G, H = fn(&[f64]) -> f64> {
+    op: A,
+    g: G,
+    h: Option<H>,
+}
+
+impl<A: LinearOperator, G: Fn(&[f64], &mut [f64])> Semilinear<A, G> {
+    /// y' = Ay + g(y) without a known energy.
+    pub fn new(op: A, g: G) -> Self {
+        Semilinear { op, g, h: None }
+    }
+}
+
+impl<A: LinearOperator, G: Fn(&[f64], &mut [f64]), H: Fn(&[f64]) -> f64> Semilinear<A, G, H> {
+    /// y' = Ay + g(y) with energy H.
+    pub fn with_energy(op: A, g: G, h: H) -> Self {
+        Semilinear { op, g, h: Some(h) }
+    }
+}
+
+impl<A: LinearOperator, G: Fn(&[f64], &mut [f64]), H: Fn(&[f64]) -> f64> System
+    for Semilinear<A, G, H>
+{
+    type Op = A;
+    fn linear(&self) -> &A {
+        &self.op
+    }
+    fn nonlinear(&self, y: &[f64], out: &mut [f64], _scratch: &mut [f64]) {
+        (self.g)(y, out)
+    }
+    fn energy(&self, y: &[f64]) -> Option<f64> {
+        self.h.as_ref().map(|h| h(y))
+    }
+}
+
+/// yᵀMy.
+fn quadratic_form(m: &DMatrix<f64>, y: &[f64]) -> f64 {
+    m.column_iter()
+        .zip(y)
+        .map(|(col, yj)| yj * col.iter().zip(y).map(|(a, yi)| a * yi).sum::<f64>())
+        .sum()
+}
+
+fn check_square(what: &'static str, m: &DMatrix<f64>) -> Result<()> {
+    if m.nrows() != m.ncols() {
+        return Err(Error::NotSquare {
+            what,
+            rows: m.nrows(),
+            cols: m.ncols(),
+        });
+    }
+    if m.iter().any(|x| !x.is_finite()) {
+        return Err(Error::NonFinite(what));
+    }
+    Ok(())
+}
+
+fn check_symmetric(what: &'static str, m: &DMatrix<f64>) -> Result<()> {
+    let scale = m.amax().max(f64::MIN_POSITIVE);
+    let asym = (m - m.transpose()).amax();
+    if asym > 1e-12 * scale {
+        return Err(Error::InvalidInput(format!(
+            "{what} must be symmetric (max |M - Mᵀ| = {asym:e})"
+        )));
+    }
+    Ok(())
+}
+
+/// y' = Q∇H(y), H(y) = ½yᵀMy + V(y) (paper eqs. `IVPPP`, `H`): A = QM, g = Q∇V.
+///
+/// Q skew-symmetric: H is a first integral; Q negative semidefinite: H is a Lyapunov function.
+pub struct Hamiltonian<GV, V = fn(&[f64]) -> f64> {
+    op: Dense,
+    q: DMatrix<f64>,
+    m: DMatrix<f64>,
+    grad_v: GV,
+    v: Option<V>,
+}
+
+impl<GV: Fn(&[f64], &mut [f64])> Hamiltonian<GV> {
+    /// From Q, M (symmetric) and ∇V, without V (no energy).
+    ///
+    /// # Errors
+    /// [`Error::NotSquare`], [`Error::DimensionMismatch`], [`Error::NonFinite`], or
+    /// [`Error::InvalidInput`] if M is not symmetric.
+    pub fn new(q: DMatrix<f64>, m: DMatrix<f64>, grad_v: GV) -> Result<Self> {
+        Self::build(q, m, grad_v, None)
+    }
+}
+
+impl<GV: Fn(&[f64], &mut [f64]), V: Fn(&[f64]) -> f64> Hamiltonian<GV, V> {
+    /// From Q, M, ∇V and V: the energy H = ½yᵀMy + V is reported.
+    ///
+    /// # Errors
+    /// As [`Hamiltonian::new`].
+    pub fn with_potential(q: DMatrix<f64>, m: DMatrix<f64>, grad_v: GV, v: V) -> Result<Self> {
+        Self::build(q, m, grad_v, Some(v))
+    }
+
+    fn build(q: DMatrix<f64>, m: DMatrix<f64>, grad_v: GV, v: Option<V>) -> Result<Self> {
+        check_square("Q", &q)?;
+        check_square("M", &m)?;
+        if q.nrows() != m.nrows() {
+            return Err(Error::DimensionMismatch {
+                what: "Q and M",
+                expected: q.nrows(),
+                found: m.nrows(),
+            });
+        }
+        check_symmetric("M", &m)?;
+        let op = Dense::new(&q * &m)?;
+        Ok(Hamiltonian {
+            op,
+            q,
+            m,
+            grad_v,
+            v,
+        })
+    }
+
+    /// Q.
+    pub fn q(&self) -> &DMatrix<f64> {
+        &self.q
+    }
+
+    /// M.
+    pub fn m(&self) -> &DMatrix<f64> {
+        &self.m
+    }
+}
+
+impl<GV: Fn(&[f64], &mut [f64]), V: Fn(&[f64]) -> f64> System for Hamiltonian<GV, V> {
+    type Op = Dense;
+    fn linear(&self) -> &Dense {
+        &self.op
+    }
+    fn nonlinear(&self, y: &[f64], out: &mut [f64], scratch: &mut [f64]) {
+        (self.grad_v)(y, scratch);
+        // out = Q ∇V(y)
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = self
+                .q
+                .row(i)
+                .iter()
+                .zip(scratch.iter())
+                .map(|(a, b)| a * b)
+                .sum();
+        }
+    }
+    fn scratch_len(&self) -> usize {
+        self.q.nrows()
+    }
+    fn energy(&self, y: &[f64]) -> Option<f64> {
+        let v = self.v.as_ref()?;
+        Some(0.5 * quadratic_form(&self.m, y) + v(y))
+    }
+}
+
+/// Gradient flow y' = −∇U(y), U(y) = ½yᵀMy + V(y) (paper §7, with Q = −I: DESIGN.md erratum):
+/// A = −M (symmetric, so its φ-functions come from one eigendecomposition), g = −∇V,
+/// and U is a Lyapunov function.
+pub struct GradientFlow<GV, V = fn(&[f64]) -> f64> {
+    op: Symmetric,
+    m: DMatrix<f64>,
+    grad_v: GV,
+    v: Option<V>,
+}
+
+impl<GV: Fn(&[f64], &mut [f64]), V: Fn(&[f64]) -> f64> GradientFlow<GV, V> {
+    /// From M (symmetric), ∇V and optionally V.
+    ///
+    /// # Errors
+    /// [`Error::NotSquare`], [`Error::NonFinite`], [`Error::InvalidInput`] (M not symmetric).
+    pub fn new(m: DMatrix<f64>, grad_v: GV, v: Option<V>) -> Result<Self> {
+        check_square("M", &m)?;
+        check_symmetric("M", &m)?;
+        let op = Symmetric::new(-m.clone())?;
+        Ok(GradientFlow { op, m, grad_v, v })
+    }
+}
+
+impl<GV: Fn(&[f64], &mut [f64]), V: Fn(&[f64]) -> f64> System for GradientFlow<GV, V> {
+    type Op = Symmetric;
+    fn linear(&self) -> &Symmetric {
+        &self.op
+    }
+    fn nonlinear(&self, y: &[f64], out: &mut [f64], _scratch: &mut [f64]) {
+        (self.grad_v)(y, out);
+        for o in out.iter_mut() {
+            *o = -*o;
+        }
+    }
+    fn energy(&self, y: &[f64]) -> Option<f64> {
+        let v = self.v.as_ref()?;
+        Some(0.5 * quadratic_form(&self.m, y) + v(y))
+    }
+}

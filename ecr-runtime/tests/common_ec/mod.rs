@@ -1,0 +1,70 @@
+//! Shared harness: the paper's problems as systems, error measurement and order fitting.
+#![allow(dead_code)]
+
+use ecr_runtime::integrate::{IntegrateOptions, integrate};
+use ecr_runtime::operator::Dense;
+use ecr_runtime::problems::{Duffing, Wind};
+use ecr_runtime::stepper::{EcStepper, SolverSettings};
+use ecr_runtime::system::{Semilinear, System};
+
+pub fn duffing_system(p: Duffing) -> impl System<Op = Dense> {
+    let op = Dense::new(p.linear_matrix()).unwrap();
+    let (g, h) = (p.clone(), p);
+    Semilinear::with_energy(
+        op,
+        move |y: &[f64], o: &mut [f64]| g.nonlinear(y, o),
+        move |y: &[f64]| h.energy(y),
+    )
+}
+
+pub fn wind_system(p: Wind) -> impl System<Op = Dense> {
+    let op = Dense::new(p.linear_matrix()).unwrap();
+    let (g, h) = (p.clone(), p);
+    Semilinear::with_energy(
+        op,
+        move |y: &[f64], o: &mut [f64]| g.nonlinear(y, o),
+        move |y: &[f64]| h.energy(y),
+    )
+}
+
+/// Runs ECrP(r, s) with step h from t = 0 to t_end, returning the final state.
+pub fn solve<S: System>(sys: S, r: usize, s: usize, h: f64, y0: &[f64], t_end: f64) -> Vec<f64> {
+    let mut st = EcStepper::with_nodes(sys, r, s, h, SolverSettings::default()).unwrap();
+    let mut y = y0.to_vec();
+    integrate(
+        &mut st,
+        0.0,
+        t_end,
+        &mut y,
+        IntegrateOptions {
+            energy_every: 0,
+            observe_every: 0,
+        },
+        |_, _, _| {},
+    )
+    .unwrap();
+    y
+}
+
+pub fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max)
+}
+
+/// Least-squares slope of log(err) against log(h) over the points with err in (floor, ceil).
+pub fn fitted_order(hs: &[f64], errs: &[f64], floor: f64, ceil: f64) -> (f64, usize) {
+    let pts: Vec<(f64, f64)> = hs
+        .iter()
+        .zip(errs)
+        .filter(|&(_, &e)| e > floor && e < ceil)
+        .map(|(&h, &e)| (h.ln(), e.ln()))
+        .collect();
+    let n = pts.len() as f64;
+    let mx = pts.iter().map(|p| p.0).sum::<f64>() / n;
+    let my = pts.iter().map(|p| p.1).sum::<f64>() / n;
+    let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+    let sxx: f64 = pts.iter().map(|p| (p.0 - mx) * (p.0 - mx)).sum();
+    (sxy / sxx, pts.len())
+}
