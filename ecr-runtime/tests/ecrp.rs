@@ -4,13 +4,9 @@
 mod common_ec;
 
 use common_ec::*;
-use ecr_runtime::Error;
-use ecr_runtime::integrate::{IntegrateOptions, integrate};
-use ecr_runtime::operator::{Dense, DenseStatic, Diagonal, Symmetric, Zero};
+use ecr_runtime::operator::Dense;
 use ecr_runtime::problems::{Duffing, Wind};
-use ecr_runtime::stepper::{EcStepper, SolverSettings, SweepLimit};
-use ecr_runtime::system::{GradientFlow, Hamiltonian, Semilinear, System};
-use nalgebra::DMatrix;
+use ecr_runtime::system::{Semilinear, System};
 
 /// Step sizes T/N with N ≈ (T/h_max)·2^(i/4), N an integer (so h divides T): a fine geometric
 /// grid, so that several points lie between the pre-asymptotic range and the round-off floor
@@ -117,7 +113,7 @@ fn wind_orders(grids: &[(usize, f64)]) {
     let t_end = 1.0;
     let y0 = p.initial_value();
     let op = Dense::new(p.linear_matrix()).unwrap();
-    let pg = p.clone();
+    let pg = p;
     let sys = Semilinear::new(op, move |y: &[f64], o: &mut [f64]| pg.nonlinear(y, o));
     let sys = &sys;
     // Reference: r = 8 (order 16) with h = 1/256, its error far below the floor of the fit.

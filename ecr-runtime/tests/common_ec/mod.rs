@@ -19,7 +19,7 @@ pub fn duffing_system(p: Duffing) -> impl System<Op = Dense> {
 
 pub fn wind_system(p: Wind) -> impl System<Op = Dense> {
     let op = Dense::new(p.linear_matrix()).unwrap();
-    let (g, h) = (p.clone(), p);
+    let (g, h) = (p, p);
     Semilinear::with_energy(
         op,
         move |y: &[f64], o: &mut [f64]| g.nonlinear(y, o),
