@@ -9,7 +9,11 @@ fn main() {
     for r in 1..=10 {
         let t0 = Instant::now();
         let t = MethodTable::generate(Family::Ec, r, r).expect("r <= MAX_R");
-        println!("r = {r:2}: {:>10.3?} (bisection depth {} bits)", t0.elapsed(), t.bits);
+        println!(
+            "r = {r:2}: {:>10.3?} (bisection depth {} bits)",
+            t0.elapsed(),
+            t.bits
+        );
     }
     println!("total r = 1..=10: {:.3?}", total.elapsed());
 }

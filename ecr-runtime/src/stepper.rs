@@ -14,6 +14,10 @@ use crate::tables::{Coefficients, coefficients};
 use crate::{Error, Result};
 use std::sync::Arc;
 
+/// Scaled stage updates at or below this (100 ε) count as round-off: when the update stops
+/// decreasing there, the iteration has converged as far as f64 allows.
+pub const ROUNDOFF_RESIDUAL: f64 = 100.0 * f64::EPSILON;
+
 /// What to do when the stage equations have not converged after the allowed sweeps.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum SweepLimit {
@@ -26,7 +30,8 @@ pub enum SweepLimit {
 /// Settings of the fixed-point stage solver.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SolverSettings {
-    /// Stop when the scaled max-norm of the stage update ‖ΔY‖∞ / max(1, ‖Y‖∞) is ≤ this.
+    /// Stop when the scaled max-norm of the stage update ‖ΔY‖∞ / max(1, ‖Y‖∞) is ≤ this, or
+    /// when it stagnates at round-off level (≤ [`ROUNDOFF_RESIDUAL`] and no longer halving).
     pub tolerance: f64,
     /// Maximum number of sweeps per step.
     pub max_sweeps: usize,
@@ -252,7 +257,8 @@ impl<S: System> EcStepper<S> {
         }
         let mut g_evals = 1;
         let mut sweeps = 0;
-        let residual = loop {
+        let mut previous = f64::INFINITY;
+        let (residual, converged) = loop {
             self.update_moments();
             self.bank.combine(
                 0..s,
@@ -280,11 +286,18 @@ impl<S: System> EcStepper<S> {
                     "stage values (the fixed-point iteration diverged)",
                 ));
             }
-            if residual <= self.settings.tolerance || sweeps >= self.settings.max_sweeps {
-                break residual;
+            // Converged: the tolerance is met, or the update has stagnated at round-off level
+            // (no longer halving while within ROUNDOFF_RESIDUAL), where further sweeps only
+            // move the last bits.
+            let stagnated = residual <= ROUNDOFF_RESIDUAL && residual > 0.5 * previous;
+            if residual <= self.settings.tolerance || stagnated {
+                break (residual, true);
             }
+            if sweeps >= self.settings.max_sweeps {
+                break (residual, false);
+            }
+            previous = residual;
         };
-        let converged = residual <= self.settings.tolerance;
         if !converged && self.settings.on_limit == SweepLimit::Error {
             return Err(Error::NoConvergence {
                 sweeps,

@@ -68,3 +68,27 @@ pub fn fitted_order(hs: &[f64], errs: &[f64], floor: f64, ceil: f64) -> (f64, us
     let sxx: f64 = pts.iter().map(|p| (p.0 - mx) * (p.0 - mx)).sum();
     (sxy / sxx, pts.len())
 }
+
+/// The asymptotic order: least-squares slope of log(err) vs log(h) over the `k` smallest step
+/// sizes whose error is above the round-off floor of their run, 30·N·ε·scale (N = T/h steps;
+/// rounding accumulates at most linearly, and the factor 30 keeps its scatter out of the fit).
+/// Returns (order, points used, first h used).
+pub fn asymptotic_order(
+    hs: &[f64],
+    errs: &[f64],
+    t_end: f64,
+    scale: f64,
+    k: usize,
+) -> (f64, usize, f64) {
+    let mut pts: Vec<(f64, f64)> = hs
+        .iter()
+        .zip(errs)
+        .filter(|&(&h, &e)| e > 30.0 * (t_end / h) * f64::EPSILON * scale)
+        .map(|(&h, &e)| (h, e))
+        .collect();
+    pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+    pts.truncate(k);
+    let (hs, es): (Vec<f64>, Vec<f64>) = pts.iter().copied().unzip();
+    let (o, n) = fitted_order(&hs, &es, 0.0, f64::INFINITY);
+    (o, n, hs.last().copied().unwrap_or(f64::NAN))
+}
