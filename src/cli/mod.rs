@@ -1,5 +1,6 @@
 //! Command-line interface.
 
+mod run;
 mod tables;
 
 use clap::{Parser, Subcommand};
@@ -17,6 +18,11 @@ pub struct Cli {
 enum Command {
     /// Regenerate the exact coefficient tables of a method (nodes, weights, moment weights).
     Tables(tables::TablesArgs),
+    /// Integrate a test problem (duffing, wind, wind-dissipative, nls) and print a JSON report.
+    ///
+    /// Bad input and runtime failures (such as stage equations that do not converge) print one
+    /// line starting with 'error: ' on stderr and exit with status 2.
+    Run(run::RunArgs),
 }
 
 /// A failure the user can fix: printed as one line, exit status 2.
@@ -59,6 +65,7 @@ where
     };
     match cli.command {
         Command::Tables(args) => tables::run(&args, out),
+        Command::Run(args) => run::run(&args, out),
     }
 }
 

@@ -35,10 +35,12 @@ use nalgebra::DMatrix;
 
 mod duffing;
 mod nls;
+mod systems;
 mod wind;
 
 pub use duffing::Duffing;
 pub use nls::Nls;
+pub use systems::{DuffingSystem, NlsDenseSystem, NlsSystem, ProblemSystem, WindSystem};
 pub use wind::Wind;
 
 /// A problem `y' = Q∇H(y) = Ay + g(y)` with `H(y) = ½yᵀMy + V(y)`, `A = QM`, `g = Q∇V`

@@ -5,26 +5,16 @@ use ecr_runtime::integrate::{IntegrateOptions, integrate};
 use ecr_runtime::operator::Dense;
 use ecr_runtime::problems::{Duffing, Wind};
 use ecr_runtime::stepper::{EcStepper, SolverSettings};
-use ecr_runtime::system::{Semilinear, System};
+use ecr_runtime::system::System;
 
+/// Duffing as a system (dense 2 × 2 linear part).
 pub fn duffing_system(p: Duffing) -> impl System<Op = Dense> {
-    let op = Dense::new(p.linear_matrix()).unwrap();
-    let (g, h) = (p.clone(), p);
-    Semilinear::with_energy(
-        op,
-        move |y: &[f64], o: &mut [f64]| g.nonlinear(y, o),
-        move |y: &[f64]| h.energy(y),
-    )
+    p.system().expect("valid Duffing parameters")
 }
 
+/// Wind-induced oscillation as a system.
 pub fn wind_system(p: Wind) -> impl System<Op = Dense> {
-    let op = Dense::new(p.linear_matrix()).unwrap();
-    let (g, h) = (p, p);
-    Semilinear::with_energy(
-        op,
-        move |y: &[f64], o: &mut [f64]| g.nonlinear(y, o),
-        move |y: &[f64]| h.energy(y),
-    )
+    p.system().expect("valid wind parameters")
 }
 
 /// Runs ECrP(r, s) with step h from t = 0 to t_end, returning the final state.

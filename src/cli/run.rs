@@ -1,0 +1,302 @@
+//! `ecr run`: integrate one of the paper's test problems and report the run as JSON.
+
+use super::UsageError;
+use clap::{Args, ValueEnum};
+use ecr_runtime::integrate::{IntegrateOptions, Report, integrate};
+use ecr_runtime::problems::{Duffing, Nls, Wind};
+use ecr_runtime::stepper::{EcStepper, SolverSettings};
+use ecr_runtime::system::System;
+use serde_json::{Value, json};
+use std::io::Write;
+use std::time::Instant;
+
+/// Refuse runs with more steps than this (h far too small for the interval).
+const MAX_STEPS: f64 = 1e9;
+
+#[derive(Clone, Copy, Debug, PartialEq, ValueEnum)]
+enum ProblemArg {
+    /// Problem 1: Duffing equation (exact solution known).
+    Duffing,
+    /// Problem 2: wind-induced oscillation, conservative (θ = π/2).
+    Wind,
+    /// Problem 2: wind-induced oscillation, dissipative (θ = π/2 − 1e−4).
+    WindDissipative,
+    /// Problem 3: cubic nonlinear Schrödinger equation, pseudospectral (FFT linear part).
+    Nls,
+}
+
+impl ProblemArg {
+    fn name(self) -> &'static str {
+        match self {
+            ProblemArg::Duffing => "duffing",
+            ProblemArg::Wind => "wind",
+            ProblemArg::WindDissipative => "wind-dissipative",
+            ProblemArg::Nls => "nls",
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, ValueEnum)]
+enum MethodArg {
+    /// Exponential collocation ECrP (first-order systems).
+    Ec,
+    /// Trigonometric collocation TCr (not available yet).
+    Tc,
+    /// RKN collocation RKNCr (not available yet).
+    Rknc,
+}
+
+/// Arguments of `ecr run`.
+///
+/// Prints a JSON report on stdout. Bad input and runtime failures (for example stage
+/// equations that do not converge within --max-sweeps without --paper-solver) are reported as
+/// one line on stderr with exit status 2.
+#[derive(Args, Debug)]
+#[command(
+    after_help = "Bad input and runtime failures (e.g. non-convergence of the stage equations) \
+                  print one line starting with 'error: ' on stderr and exit with status 2."
+)]
+pub struct RunArgs {
+    /// Test problem.
+    #[arg(long, value_enum)]
+    problem: ProblemArg,
+    /// Duffing frequency ω [default: 5].
+    #[arg(long, allow_negative_numbers = true)]
+    omega: Option<f64>,
+    /// Duffing nonlinearity k, |k| ≤ ω [default: 0.07].
+    #[arg(long, allow_negative_numbers = true)]
+    k: Option<f64>,
+    /// Wind angle θ in [0, π/2] [default: π/2 for wind, π/2 − 1e−4 for wind-dissipative].
+    #[arg(long, allow_negative_numbers = true)]
+    theta: Option<f64>,
+    /// Wind radius r (the paper's "r = 20") [default: 20].
+    #[arg(long, allow_negative_numbers = true)]
+    amplitude: Option<f64>,
+    /// NLS grid size N (even) [default: 128].
+    #[arg(long)]
+    n: Option<usize>,
+    /// Method family (only `ec` is implemented so far).
+    #[arg(long, value_enum, default_value = "ec")]
+    method: MethodArg,
+    /// Order parameter r (the method has order 2r).
+    #[arg(long)]
+    r: usize,
+    /// Number of Gauss–Legendre points, s ≥ r [default: r].
+    #[arg(long)]
+    s: Option<usize>,
+    /// Step size h > 0.
+    #[arg(long, allow_negative_numbers = true)]
+    h: f64,
+    /// Final time T ≥ 0 (the last step is shortened if h does not divide T).
+    #[arg(long, allow_negative_numbers = true)]
+    t_end: f64,
+    /// The paper's stage solver: tolerance 1e−16, at most 5 sweeps, accepted at the limit.
+    #[arg(long)]
+    paper_solver: bool,
+    /// Stage-solver tolerance (scaled max-norm of the update) [default: 1e−15, or 1e−16 with
+    /// --paper-solver].
+    #[arg(long, allow_negative_numbers = true)]
+    tolerance: Option<f64>,
+    /// Maximum fixed-point sweeps per step [default: 100, or 5 with --paper-solver].
+    #[arg(long)]
+    max_sweeps: Option<usize>,
+}
+
+fn usage(e: ecr_runtime::Error) -> UsageError {
+    UsageError(e.to_string())
+}
+
+/// Rejects an option that does not belong to the chosen problem.
+fn only_for(
+    value: bool,
+    option: &str,
+    problems: &str,
+    chosen: ProblemArg,
+) -> Result<(), UsageError> {
+    if value {
+        return Err(UsageError(format!(
+            "--{option} applies only to {problems}, not to --problem {}",
+            chosen.name()
+        )));
+    }
+    Ok(())
+}
+
+/// What one integration produced.
+struct Outcome {
+    report: Report,
+    y: Vec<f64>,
+    seconds: f64,
+}
+
+fn run_system<S: System>(
+    system: S,
+    y0: Vec<f64>,
+    args: &RunArgs,
+    settings: SolverSettings,
+) -> Result<Outcome, UsageError> {
+    let s = args.s.unwrap_or(args.r);
+    let mut stepper = EcStepper::with_nodes(system, args.r, s, args.h, settings).map_err(usage)?;
+    let mut y = y0;
+    let start = Instant::now();
+    let report = integrate(
+        &mut stepper,
+        0.0,
+        args.t_end,
+        &mut y,
+        IntegrateOptions {
+            energy_every: 1,
+            observe_every: 0,
+        },
+        |_, _, _| {},
+    )
+    .map_err(|e| UsageError(format!("integration failed: {e}")))?;
+    Ok(Outcome {
+        report,
+        y,
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+fn check_inputs(args: &RunArgs) -> Result<(), UsageError> {
+    match args.method {
+        MethodArg::Ec => {}
+        MethodArg::Tc | MethodArg::Rknc => {
+            let name = if args.method == MethodArg::Tc {
+                "tc"
+            } else {
+                "rknc"
+            };
+            return Err(UsageError(format!(
+                "method '{name}' is not implemented for 'ecr run' yet; use --method ec"
+            )));
+        }
+    }
+    if !(args.h.is_finite() && args.h > 0.0) {
+        return Err(UsageError(format!(
+            "step size --h {:?} must be finite and > 0",
+            args.h
+        )));
+    }
+    if !(args.t_end.is_finite() && args.t_end >= 0.0) {
+        return Err(UsageError(format!(
+            "final time --t-end {:?} must be finite and >= 0",
+            args.t_end
+        )));
+    }
+    if args.t_end / args.h > MAX_STEPS {
+        return Err(UsageError(format!(
+            "--t-end {:?} / --h {:?} needs more than {MAX_STEPS:e} steps",
+            args.t_end, args.h
+        )));
+    }
+    if let Some(tol) = args.tolerance {
+        if !(tol.is_finite() && tol >= 0.0) {
+            return Err(UsageError(format!(
+                "--tolerance {tol:?} must be finite and >= 0"
+            )));
+        }
+    }
+    if args.max_sweeps == Some(0) {
+        return Err(UsageError("--max-sweeps must be >= 1".to_string()));
+    }
+    let p = args.problem;
+    let duffing = p == ProblemArg::Duffing;
+    let wind = matches!(p, ProblemArg::Wind | ProblemArg::WindDissipative);
+    only_for(!duffing && args.omega.is_some(), "omega", "duffing", p)?;
+    only_for(!duffing && args.k.is_some(), "k", "duffing", p)?;
+    let winds = "wind and wind-dissipative";
+    only_for(!wind && args.theta.is_some(), "theta", winds, p)?;
+    only_for(!wind && args.amplitude.is_some(), "amplitude", winds, p)?;
+    only_for(p != ProblemArg::Nls && args.n.is_some(), "n", "nls", p)?;
+    Ok(())
+}
+
+fn solver_settings(args: &RunArgs) -> SolverSettings {
+    let mut settings = if args.paper_solver {
+        SolverSettings::paper()
+    } else {
+        SolverSettings::default()
+    };
+    if let Some(tol) = args.tolerance {
+        settings.tolerance = tol;
+    }
+    if let Some(m) = args.max_sweeps {
+        settings.max_sweeps = m;
+    }
+    settings
+}
+
+/// Runs `ecr run`.
+pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), UsageError> {
+    check_inputs(args)?;
+    let settings = solver_settings(args);
+    let (outcome, parameters, global_error) = match args.problem {
+        ProblemArg::Duffing => {
+            let problem =
+                Duffing::new(args.omega.unwrap_or(5.0), args.k.unwrap_or(0.07)).map_err(usage)?;
+            let system = problem.system().map_err(usage)?;
+            let o = run_system(system, problem.initial_value(), args, settings)?;
+            let exact = problem.exact(o.report.t_end).map_err(usage)?;
+            let err =
+                o.y.iter()
+                    .zip(exact)
+                    .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+            let params = json!({ "omega": problem.omega(), "k": problem.k() });
+            (o, params, Some(err))
+        }
+        ProblemArg::Wind | ProblemArg::WindDissipative => {
+            let radius = args.amplitude.unwrap_or(20.0);
+            let problem = match (args.theta, args.problem) {
+                (Some(theta), _) => Wind::new(theta, radius),
+                (None, ProblemArg::WindDissipative) => Wind::from_deviation(1e-4, radius),
+                (None, _) => Wind::new(std::f64::consts::FRAC_PI_2, radius),
+            }
+            .map_err(usage)?;
+            let system = problem.system().map_err(usage)?;
+            let o = run_system(system, problem.initial_value(), args, settings)?;
+            let params = json!({
+                "theta": problem.theta(),
+                "amplitude": problem.radius(),
+                "conservative": problem.is_conservative(),
+            });
+            (o, params, None)
+        }
+        ProblemArg::Nls => {
+            let problem = Nls::new(args.n.unwrap_or(128)).map_err(usage)?;
+            let system = problem.system().map_err(usage)?;
+            let o = run_system(system, problem.initial_value(), args, settings)?;
+            (o, json!({ "n": problem.n() }), None)
+        }
+    };
+    let Outcome { report, y, seconds } = outcome;
+    let value: Value = json!({
+        "problem": args.problem.name(),
+        "parameters": parameters,
+        "method": "ec",
+        "r": args.r,
+        "s": args.s.unwrap_or(args.r),
+        "h": args.h,
+        "t_end": report.t_end,
+        "steps": report.steps,
+        "solver": {
+            "tolerance": settings.tolerance,
+            "max_sweeps": settings.max_sweeps,
+            "paper": args.paper_solver,
+        },
+        "y": y,
+        "energy_start": report.energy_start,
+        "energy_end": report.energy_end,
+        "max_energy_error": report.max_energy_error,
+        "global_error": global_error,
+        "sweeps": report.sweeps,
+        "max_sweeps_per_step": report.max_sweeps,
+        "g_evals": report.g_evals,
+        "unconverged_steps": report.unconverged_steps,
+        "wall_seconds": seconds,
+    });
+    let mut text = serde_json::to_string_pretty(&value).map_err(|e| UsageError(e.to_string()))?;
+    text.push('\n');
+    out.write_all(text.as_bytes())
+        .map_err(|e| UsageError(format!("cannot write output: {e}")))
+}

@@ -1,0 +1,242 @@
+//! `ecr run`: the JSON report of each test problem, accuracy and energy on short runs, and
+//! one-line errors with exit status 2 on bad input.
+
+use std::process::Command;
+
+fn ecr(args: &[&str]) -> (i32, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_ecr"))
+        .args(args)
+        .output()
+        .expect("run ecr");
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8(out.stdout).unwrap(),
+        String::from_utf8(out.stderr).unwrap(),
+    )
+}
+
+/// Runs `ecr run ARGS`, expects success and returns the parsed report.
+fn run_ok(args: &[&str]) -> serde_json::Value {
+    let mut full = vec!["run"];
+    full.extend_from_slice(args);
+    let (code, out, err) = ecr(&full);
+    assert_eq!(code, 0, "ecr {full:?} failed: {err}");
+    assert!(err.is_empty(), "unexpected stderr: {err}");
+    serde_json::from_str(&out).unwrap_or_else(|e| panic!("bad JSON ({e}): {out}"))
+}
+
+const FIELDS: [&str; 17] = [
+    "problem",
+    "method",
+    "r",
+    "s",
+    "h",
+    "t_end",
+    "steps",
+    "y",
+    "energy_start",
+    "energy_end",
+    "max_energy_error",
+    "global_error",
+    "sweeps",
+    "max_sweeps_per_step",
+    "g_evals",
+    "unconverged_steps",
+    "wall_seconds",
+];
+
+fn check_fields(v: &serde_json::Value) {
+    for f in FIELDS {
+        assert!(v.get(f).is_some(), "missing field {f} in {v}");
+    }
+}
+
+#[test]
+fn duffing_is_accurate_and_reports_every_field() {
+    let v = run_ok(&[
+        "--problem",
+        "duffing",
+        "--method",
+        "ec",
+        "--r",
+        "2",
+        "--h",
+        "0.01",
+        "--t-end",
+        "1",
+    ]);
+    check_fields(&v);
+    assert_eq!(v["problem"], "duffing");
+    assert_eq!(v["method"], "ec");
+    assert_eq!(v["r"], 2);
+    assert_eq!(v["s"], 2);
+    assert_eq!(v["steps"], 100);
+    assert_eq!(v["t_end"].as_f64(), Some(1.0));
+    assert_eq!(v["y"].as_array().unwrap().len(), 2);
+    let global = v["global_error"].as_f64().unwrap();
+    assert!(global < 1e-8, "global error {global:e}");
+    let energy = v["max_energy_error"].as_f64().unwrap();
+    assert!(energy < 1e-8, "energy error {energy:e}");
+    assert_eq!(v["unconverged_steps"], 0);
+    let sweeps = v["sweeps"].as_u64().unwrap();
+    assert!(sweeps >= 100 && v["max_sweeps_per_step"].as_u64().unwrap() >= 1);
+    assert!(v["g_evals"].as_u64().unwrap() >= sweeps);
+    assert!(v["wall_seconds"].as_f64().unwrap() >= 0.0);
+}
+
+#[test]
+fn duffing_paper_solver_and_more_nodes() {
+    let v = run_ok(&[
+        "--problem",
+        "duffing",
+        "--omega",
+        "10",
+        "--r",
+        "2",
+        "--s",
+        "3",
+        "--h",
+        "0.01",
+        "--t-end",
+        "0.5",
+        "--paper-solver",
+    ]);
+    check_fields(&v);
+    assert_eq!(v["s"], 3);
+    assert!(v["max_sweeps_per_step"].as_u64().unwrap() <= 5);
+    assert!(v["global_error"].as_f64().unwrap() < 1e-6);
+}
+
+#[test]
+fn wind_problems_run() {
+    for problem in ["wind", "wind-dissipative"] {
+        let v = run_ok(&[
+            "--problem",
+            problem,
+            "--r",
+            "2",
+            "--h",
+            "0.01",
+            "--t-end",
+            "0.5",
+        ]);
+        check_fields(&v);
+        assert_eq!(v["problem"], problem);
+        assert!(v["global_error"].is_null());
+        assert_eq!(v["y"].as_array().unwrap().len(), 2);
+        let (e0, e1) = (
+            v["energy_start"].as_f64().unwrap(),
+            v["energy_end"].as_f64().unwrap(),
+        );
+        if problem == "wind" {
+            // Nearly preserved: a bounded O(h^{2r}) error (A ≠ 0), ≈ 5e-7 here.
+            let energy = v["max_energy_error"].as_f64().unwrap();
+            assert!(energy < 1e-5, "wind energy error {energy:e}");
+        } else {
+            // Dissipative: H does not increase (up to the method's small error).
+            assert!(e1 <= e0 * (1.0 + 1e-10), "H grew: {e0} -> {e1}");
+        }
+    }
+}
+
+#[test]
+fn nls_runs_with_small_energy_error() {
+    let v = run_ok(&[
+        "--problem",
+        "nls",
+        "--n",
+        "32",
+        "--r",
+        "2",
+        "--h",
+        "0.01",
+        "--t-end",
+        "0.05",
+    ]);
+    check_fields(&v);
+    assert_eq!(v["steps"], 5);
+    assert_eq!(v["y"].as_array().unwrap().len(), 64);
+    assert!(v["global_error"].is_null());
+    let energy = v["max_energy_error"].as_f64().unwrap();
+    assert!(energy < 1e-10, "NLS energy error {energy:e}");
+}
+
+/// Replacements of base option values, extra arguments.
+type Case<'a> = (&'a [(&'a str, &'a str)], &'a [&'a str]);
+
+#[test]
+fn bad_input_gives_one_line_and_exit_2() {
+    let base = [
+        "--problem",
+        "duffing",
+        "--r",
+        "2",
+        "--h",
+        "0.01",
+        "--t-end",
+        "1",
+    ];
+    // (replacements of base option values, extra arguments)
+    let cases: &[Case] = &[
+        (&[("--h", "0")], &[]),
+        (&[("--h", "-0.1")], &[]),
+        (&[("--h", "NaN")], &[]),
+        (&[("--h", "inf")], &[]),
+        (&[("--h", "abc")], &[]),
+        (&[("--t-end", "-1")], &[]),
+        (&[("--t-end", "nan")], &[]),
+        (&[("--h", "1e-300")], &[]),
+        (&[("--r", "0")], &[]),
+        (&[("--r", "-1")], &[]),
+        (&[("--problem", "lorenz")], &[]),
+        (&[("--problem", "nls")], &["--n", "31"]),
+        (&[("--problem", "nls")], &["--n", "0"]),
+        (&[("--problem", "nls")], &["--omega", "3"]),
+        (&[("--problem", "wind")], &["--theta", "2"]),
+        (&[("--problem", "wind")], &["--amplitude", "-1"]),
+        (&[("--problem", "wind")], &["--k", "1"]),
+        (&[], &["--s", "1"]),
+        (&[], &["--omega", "0"]),
+        (&[], &["--omega", "-5"]),
+        (&[], &["--omega", "nan"]),
+        (&[], &["--k", "6"]),
+        (&[], &["--n", "32"]),
+        (&[], &["--method", "tc"]),
+        (&[], &["--method", "rknc"]),
+        (&[], &["--method", "rk4"]),
+        (&[], &["--tolerance", "-1"]),
+        (&[], &["--max-sweeps", "0"]),
+        (&[], &["--bogus"]),
+        // Non-convergence is a runtime failure with the same contract.
+        (&[], &["--max-sweeps", "1"]),
+    ];
+    for (replace, extra) in cases {
+        let mut args: Vec<&str> = vec!["run"];
+        args.extend_from_slice(&base);
+        for (opt, val) in *replace {
+            let i = args.iter().position(|a| a == opt).unwrap();
+            args[i + 1] = val;
+        }
+        args.extend_from_slice(extra);
+        let (code, out, err) = ecr(&args);
+        assert_eq!(code, 2, "{args:?}: stdout {out} stderr {err}");
+        assert!(out.is_empty(), "{args:?}: stdout {out}");
+        assert!(err.starts_with("error: "), "{args:?}: {err}");
+        assert_eq!(err.lines().count(), 1, "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+    }
+    // Missing required arguments.
+    for args in [&["run"][..], &["run", "--problem", "duffing"]] {
+        let (code, _, err) = ecr(args);
+        assert_eq!(code, 2, "{args:?}: {err}");
+        assert_eq!(err.lines().count(), 1, "{args:?}: {err}");
+    }
+}
+
+#[test]
+fn help_mentions_exit_status() {
+    let (code, out, _) = ecr(&["run", "--help"]);
+    assert_eq!(code, 0);
+    assert!(out.contains("status 2"), "{out}");
+    assert!(out.contains("--paper-solver"));
+}
