@@ -1,4 +1,4 @@
-//! The ECrP stepper (paper eq. `PEEPCr`, DESIGN.md §2) for any r and s ≥ r, chosen at run time.
+//! The ECrP stepper (paper eq. `PEEPCr`, DESIGN.md §2) for any r and s ≥ r.
 //!
 //! ```text
 //! G_k = Σ_j w_kj g(Y_j),                                 k = 0..r−1
@@ -7,6 +7,13 @@
 //! ```
 //!
 //! The φ-bank for the nodes and τ = 1 is built once per step size; a step allocates nothing.
+//!
+//! One algorithm, [`Stepper`], serves every form of the method. What varies is the
+//! [`Kernel`] (r, s, the nodes, and the moment accumulation G = W g: looped over run-time
+//! coefficients in [`RuntimeKernel`], unrolled over `const` coefficients in the kernels that
+//! `ecr_method!` emits) and the [`Buffers`] holding the stage state ([`VecBuffers`], allocated
+//! once; [`StaticBuffers`], fixed-size arrays inside the stepper). [`EcStepper`] is the
+//! run-time-r form.
 
 use crate::operator::{LinearOperator, PhiBank};
 use crate::system::System;
@@ -74,25 +81,213 @@ pub struct StepReport {
     pub converged: bool,
 }
 
-/// ECrP with r moments and s Gauss–Legendre points for a [`System`], run-time r.
-pub struct EcStepper<S: System> {
+/// The coefficient-dependent part of an ECrP method.
+pub trait Kernel {
+    /// r: the method has order 2r and r moments.
+    fn r(&self) -> usize;
+    /// s: number of Gauss–Legendre points (s ≥ r).
+    fn s(&self) -> usize;
+    /// The nodes c₁..c_s.
+    fn nodes(&self) -> &[f64];
+    /// The moments m[k·d..(k+1)·d] = Σ_j w_kj g[j·d..(j+1)·d], k < r, each sum accumulated
+    /// from 0.0 in the order j = 0, 1, … (so that every kernel rounds identically).
+    fn moments(&self, g: &[f64], m: &mut [f64], d: usize);
+    /// Calls `f(j)` for j = 0..s in order, stopping at the first error.
+    fn each_stage<F: FnMut(usize) -> Result<()>>(&self, mut f: F) -> Result<()> {
+        (0..self.s()).try_for_each(&mut f)
+    }
+}
+
+/// A kernel with compile-time coefficients (what `ecr_method!` emits): constructible
+/// without arguments, so that `Stepper::new(system, h)` can build it.
+pub trait FixedKernel: Kernel + Default {}
+
+/// The run-time kernel: coefficients from the built-in tables or generated once and cached.
+#[derive(Clone, Debug)]
+pub struct RuntimeKernel(Arc<Coefficients>);
+
+impl RuntimeKernel {
+    /// The kernel of ECrP with r moments and s points.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] for r, s out of range.
+    pub fn new(r: usize, s: usize) -> Result<Self> {
+        coefficients(r, s).map(RuntimeKernel)
+    }
+
+    /// The coefficients.
+    pub fn coefficients(&self) -> &Coefficients {
+        &self.0
+    }
+}
+
+impl Kernel for RuntimeKernel {
+    fn r(&self) -> usize {
+        self.0.r
+    }
+    fn s(&self) -> usize {
+        self.0.s
+    }
+    fn nodes(&self) -> &[f64] {
+        &self.0.nodes
+    }
+    fn moments(&self, g: &[f64], m: &mut [f64], d: usize) {
+        let (r, s, w) = (self.0.r, self.0.s, &self.0.w);
+        for k in 0..r {
+            let mk = &mut m[k * d..(k + 1) * d];
+            mk.fill(0.0);
+            for j in 0..s {
+                let wkj = w[k * s + j];
+                for (x, gj) in mk.iter_mut().zip(&g[j * d..(j + 1) * d]) {
+                    *x += wkj * gj;
+                }
+            }
+        }
+    }
+}
+
+/// Mutable views of a stepper's stage state: y₀ (d), stages and their next iterate (s·d),
+/// g at the stages (s·d), moments (r·d), each stage or moment contiguous.
+pub struct BufferParts<'a> {
+    /// The state at the start of the step.
+    pub y0: &'a mut [f64],
+    /// Stage values Y₁..Y_s.
+    pub stages: &'a mut [f64],
+    /// The next fixed-point iterate of the stages.
+    pub new_stages: &'a mut [f64],
+    /// g(Y₁)..g(Y_s).
+    pub g: &'a mut [f64],
+    /// Moments G₀..G_{r−1}.
+    pub moments: &'a mut [f64],
+}
+
+/// Storage for the stage state of a [`Stepper`].
+pub trait Buffers: Sized {
+    /// Storage for r moments, s stages, dimension d.
+    ///
+    /// # Errors
+    /// [`Error::DimensionMismatch`] if fixed-size storage does not have these sizes.
+    fn with_sizes(r: usize, s: usize, d: usize) -> Result<Self>;
+    /// The dimension d.
+    fn dim(&self) -> usize;
+    /// All buffers, mutably.
+    fn parts(&mut self) -> BufferParts<'_>;
+    /// y₀ of the last step.
+    fn y0(&self) -> &[f64];
+    /// The moments of the last step.
+    fn moments(&self) -> &[f64];
+}
+
+/// Heap buffers, allocated once at construction (any d known at run time).
+#[derive(Clone, Debug)]
+pub struct VecBuffers {
+    y0: Vec<f64>,
+    stages: Vec<f64>,
+    new_stages: Vec<f64>,
+    g: Vec<f64>,
+    moments: Vec<f64>,
+}
+
+impl Buffers for VecBuffers {
+    fn with_sizes(r: usize, s: usize, d: usize) -> Result<Self> {
+        Ok(VecBuffers {
+            y0: vec![0.0; d],
+            stages: vec![0.0; s * d],
+            new_stages: vec![0.0; s * d],
+            g: vec![0.0; s * d],
+            moments: vec![0.0; r * d],
+        })
+    }
+    fn dim(&self) -> usize {
+        self.y0.len()
+    }
+    fn parts(&mut self) -> BufferParts<'_> {
+        BufferParts {
+            y0: &mut self.y0,
+            stages: &mut self.stages,
+            new_stages: &mut self.new_stages,
+            g: &mut self.g,
+            moments: &mut self.moments,
+        }
+    }
+    fn y0(&self) -> &[f64] {
+        &self.y0
+    }
+    fn moments(&self) -> &[f64] {
+        &self.moments
+    }
+}
+
+/// Fixed-size buffers for dimension `D`, `S` stages and `R` moments: arrays inside the
+/// stepper, no heap.
+#[derive(Clone, Debug)]
+pub struct StaticBuffers<const D: usize, const S: usize, const R: usize> {
+    y0: [f64; D],
+    stages: [[f64; D]; S],
+    new_stages: [[f64; D]; S],
+    g: [[f64; D]; S],
+    moments: [[f64; D]; R],
+}
+
+impl<const D: usize, const S: usize, const R: usize> Buffers for StaticBuffers<D, S, R> {
+    fn with_sizes(r: usize, s: usize, d: usize) -> Result<Self> {
+        for (what, expected, found) in
+            [("dimension", D, d), ("stages s", S, s), ("moments r", R, r)]
+        {
+            if expected != found {
+                return Err(Error::DimensionMismatch {
+                    what,
+                    expected,
+                    found,
+                });
+            }
+        }
+        Ok(StaticBuffers {
+            y0: [0.0; D],
+            stages: [[0.0; D]; S],
+            new_stages: [[0.0; D]; S],
+            g: [[0.0; D]; S],
+            moments: [[0.0; D]; R],
+        })
+    }
+    fn dim(&self) -> usize {
+        D
+    }
+    fn parts(&mut self) -> BufferParts<'_> {
+        BufferParts {
+            y0: &mut self.y0,
+            stages: self.stages.as_flattened_mut(),
+            new_stages: self.new_stages.as_flattened_mut(),
+            g: self.g.as_flattened_mut(),
+            moments: self.moments.as_flattened_mut(),
+        }
+    }
+    fn y0(&self) -> &[f64] {
+        &self.y0
+    }
+    fn moments(&self) -> &[f64] {
+        self.moments.as_flattened()
+    }
+}
+
+/// ECrP for a [`System`] with kernel `K` and stage storage `B`.
+pub struct Stepper<K: Kernel, S: System, B: Buffers> {
+    kernel: K,
     system: S,
-    coeffs: Arc<Coefficients>,
     settings: SolverSettings,
     h: f64,
     bank: <S::Op as LinearOperator>::Bank,
     ws: <<S::Op as LinearOperator>::Bank as PhiBank>::Workspace,
     /// (s + 1) × r: h τᵢ^{k+1}, τ = c₁..c_s, 1.
     coef: Vec<f64>,
-    y0: Vec<f64>,
-    stages: Vec<f64>,
-    new_stages: Vec<f64>,
-    g_vals: Vec<f64>,
-    moments: Vec<f64>,
     scratch: Vec<f64>,
+    buf: B,
 }
 
-impl<S: System> EcStepper<S> {
+/// ECrP with r and s chosen at run time.
+pub type EcStepper<S> = Stepper<RuntimeKernel, S, VecBuffers>;
+
+impl<S: System> Stepper<RuntimeKernel, S, VecBuffers> {
     /// ECrP with s = r (the paper's method) and step size h.
     ///
     /// # Errors
@@ -113,46 +308,70 @@ impl<S: System> EcStepper<S> {
         h: f64,
         settings: SolverSettings,
     ) -> Result<Self> {
-        if settings.tolerance.is_nan() || settings.tolerance < 0.0 || settings.max_sweeps == 0 {
-            return Err(Error::InvalidParameter(format!(
-                "solver settings need tolerance >= 0 and max_sweeps >= 1 (got {settings:?})"
-            )));
-        }
-        let coeffs = coefficients(r, s)?;
-        let d = system.dim();
-        let (bank, coef) = Self::build_bank(&system, &coeffs, h)?;
+        check_settings(&settings)?;
+        Self::from_kernel(RuntimeKernel::new(r, s)?, system, h, settings)
+    }
+}
+
+impl<K: FixedKernel, S: System, B: Buffers> Stepper<K, S, B> {
+    /// The fixed-order stepper with default solver settings.
+    ///
+    /// # Errors
+    /// As [`Stepper::from_kernel`].
+    pub fn fixed(system: S, h: f64) -> Result<Self> {
+        Self::from_kernel(K::default(), system, h, SolverSettings::default())
+    }
+}
+
+fn check_settings(settings: &SolverSettings) -> Result<()> {
+    if settings.tolerance.is_nan() || settings.tolerance < 0.0 || settings.max_sweeps == 0 {
+        return Err(Error::InvalidParameter(format!(
+            "solver settings need tolerance >= 0 and max_sweeps >= 1 (got {settings:?})"
+        )));
+    }
+    Ok(())
+}
+
+impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
+    /// A stepper from its parts: allocates the buffers and builds the φ-bank for h.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] for bad settings, [`Error::InvalidStepSize`] for h,
+    /// [`Error::DimensionMismatch`] if fixed-size buffers do not fit the system, and whatever
+    /// building the φ-bank reports.
+    pub fn from_kernel(kernel: K, system: S, h: f64, settings: SolverSettings) -> Result<Self> {
+        check_settings(&settings)?;
+        let buf = B::with_sizes(kernel.r(), kernel.s(), system.dim())?;
+        let (bank, coef) = Self::build_bank(&system, &kernel, h)?;
         let ws = bank.workspace();
-        Ok(EcStepper {
+        Ok(Stepper {
             scratch: vec![0.0; system.scratch_len()],
+            kernel,
             system,
             settings,
             h,
             bank,
             ws,
             coef,
-            y0: vec![0.0; d],
-            stages: vec![0.0; s * d],
-            new_stages: vec![0.0; s * d],
-            g_vals: vec![0.0; s * d],
-            moments: vec![0.0; r * d],
-            coeffs,
+            buf,
         })
     }
 
     fn build_bank(
         system: &S,
-        c: &Coefficients,
+        kernel: &K,
         h: f64,
     ) -> Result<(<S::Op as LinearOperator>::Bank, Vec<f64>)> {
         if !(h.is_finite() && h > 0.0) {
             return Err(Error::InvalidStepSize(h));
         }
-        let mut taus = c.nodes.clone();
+        let r = kernel.r();
+        let mut taus = kernel.nodes().to_vec();
         taus.push(1.0);
-        let bank = system.linear().phi_bank(h, &taus, c.r)?;
+        let bank = system.linear().phi_bank(h, &taus, r)?;
         let coef = taus
             .iter()
-            .flat_map(|&t| (0..c.r).map(move |k| h * t.powi(k as i32 + 1)))
+            .flat_map(|&t| (0..r).map(move |k| h * t.powi(k as i32 + 1)))
             .collect();
         Ok((bank, coef))
     }
@@ -165,7 +384,7 @@ impl<S: System> EcStepper<S> {
         if h == self.h {
             return Ok(());
         }
-        let (bank, coef) = Self::build_bank(&self.system, &self.coeffs, h)?;
+        let (bank, coef) = Self::build_bank(&self.system, &self.kernel, h)?;
         self.ws = bank.workspace();
         self.bank = bank;
         self.coef = coef;
@@ -180,12 +399,17 @@ impl<S: System> EcStepper<S> {
 
     /// r (order 2r).
     pub fn r(&self) -> usize {
-        self.coeffs.r
+        self.kernel.r()
     }
 
     /// Number of quadrature points.
     pub fn s(&self) -> usize {
-        self.coeffs.s
+        self.kernel.s()
+    }
+
+    /// The kernel.
+    pub fn kernel(&self) -> &K {
+        &self.kernel
     }
 
     /// The system.
@@ -198,34 +422,6 @@ impl<S: System> EcStepper<S> {
         self.settings
     }
 
-    fn eval_g(&mut self, j: usize) -> Result<()> {
-        let d = self.y0.len();
-        let (y, out) = (
-            &self.stages[j * d..(j + 1) * d],
-            &mut self.g_vals[j * d..(j + 1) * d],
-        );
-        self.system.nonlinear(y, out, &mut self.scratch);
-        if out.iter().any(|v| !v.is_finite()) {
-            return Err(Error::NonFinite("g(Y) at a stage"));
-        }
-        Ok(())
-    }
-
-    fn update_moments(&mut self) {
-        let (r, s, d) = (self.coeffs.r, self.coeffs.s, self.y0.len());
-        let w = &self.coeffs.w;
-        for k in 0..r {
-            let gk = &mut self.moments[k * d..(k + 1) * d];
-            gk.fill(0.0);
-            for j in 0..s {
-                let wkj = w[k * s + j];
-                for (m, g) in gk.iter_mut().zip(&self.g_vals[j * d..(j + 1) * d]) {
-                    *m += wkj * g;
-                }
-            }
-        }
-    }
-
     /// Advances y by one step of size h in place. Allocation-free.
     ///
     /// # Errors
@@ -233,8 +429,8 @@ impl<S: System> EcStepper<S> {
     /// NaN/infinite, [`Error::NoConvergence`] if the sweeps do not converge and
     /// [`SweepLimit::Error`] is set. On error, y is unchanged.
     pub fn step(&mut self, y: &mut [f64]) -> Result<StepReport> {
-        let (s, d) = (self.coeffs.s, self.y0.len());
-        let m = self.coeffs.r;
+        let d = self.buf.dim();
+        let (s, m) = (self.kernel.s(), self.kernel.r());
         if y.len() != d {
             return Err(Error::DimensionMismatch {
                 what: "state y",
@@ -245,41 +441,60 @@ impl<S: System> EcStepper<S> {
         if y.iter().any(|v| !v.is_finite()) {
             return Err(Error::NonFinite("state y"));
         }
-        self.y0.copy_from_slice(y);
+        let Stepper {
+            kernel,
+            system,
+            settings,
+            bank,
+            ws,
+            coef,
+            scratch,
+            buf,
+            ..
+        } = self;
+        let BufferParts {
+            y0,
+            stages,
+            new_stages,
+            g,
+            moments,
+        } = buf.parts();
+        let mut eval_g = |stages: &[f64], g: &mut [f64], j: usize| -> Result<()> {
+            let out = &mut g[j * d..(j + 1) * d];
+            system.nonlinear(&stages[j * d..(j + 1) * d], out, scratch);
+            if out.iter().any(|v| !v.is_finite()) {
+                return Err(Error::NonFinite("g(Y) at a stage"));
+            }
+            Ok(())
+        };
+        y0.copy_from_slice(y);
         // Start: every stage at y₀, g(y₀) once.
         for j in 0..s {
-            self.stages[j * d..(j + 1) * d].copy_from_slice(y);
+            stages[j * d..(j + 1) * d].copy_from_slice(y);
         }
-        self.eval_g(0)?;
+        eval_g(stages, g, 0)?;
         for j in 1..s {
-            let (first, rest) = self.g_vals.split_at_mut(j * d);
+            let (first, rest) = g.split_at_mut(j * d);
             rest[..d].copy_from_slice(&first[..d]);
         }
         let mut g_evals = 1;
         let mut sweeps = 0;
         let mut previous = f64::INFINITY;
+        let mut stages: &mut [f64] = stages;
+        let mut new_stages: &mut [f64] = new_stages;
         let (residual, converged) = loop {
-            self.update_moments();
-            self.bank.combine(
-                0..s,
-                &self.y0,
-                &self.moments,
-                &self.coef[..s * m],
-                &mut self.new_stages,
-                &mut self.ws,
-            );
+            kernel.moments(g, moments, d);
+            bank.combine(0..s, y0, moments, &coef[..s * m], new_stages, ws);
             let mut diff: f64 = 0.0;
             let mut mag: f64 = 1.0;
-            for (a, b) in self.new_stages.iter().zip(&self.stages) {
+            for (a, b) in new_stages.iter().zip(stages.iter()) {
                 diff = diff.max((a - b).abs());
                 mag = mag.max(a.abs());
             }
             let residual = diff / mag;
-            std::mem::swap(&mut self.stages, &mut self.new_stages);
+            std::mem::swap(&mut stages, &mut new_stages);
             sweeps += 1;
-            for j in 0..s {
-                self.eval_g(j)?;
-            }
+            kernel.each_stage(|j| eval_g(stages, g, j))?;
             g_evals += s;
             if !residual.is_finite() {
                 return Err(Error::NonFinite(
@@ -290,32 +505,25 @@ impl<S: System> EcStepper<S> {
             // (no longer halving while within ROUNDOFF_RESIDUAL), where further sweeps only
             // move the last bits.
             let stagnated = residual <= ROUNDOFF_RESIDUAL && residual > 0.5 * previous;
-            if residual <= self.settings.tolerance || stagnated {
+            if residual <= settings.tolerance || stagnated {
                 break (residual, true);
             }
-            if sweeps >= self.settings.max_sweeps {
+            if sweeps >= settings.max_sweeps {
                 break (residual, false);
             }
             previous = residual;
         };
-        if !converged && self.settings.on_limit == SweepLimit::Error {
+        if !converged && settings.on_limit == SweepLimit::Error {
             return Err(Error::NoConvergence {
                 sweeps,
                 residual,
-                tolerance: self.settings.tolerance,
+                tolerance: settings.tolerance,
             });
         }
-        self.update_moments();
-        self.bank.combine(
-            s..s + 1,
-            &self.y0,
-            &self.moments,
-            &self.coef[s * m..],
-            y,
-            &mut self.ws,
-        );
+        kernel.moments(g, moments, d);
+        bank.combine(s..s + 1, y0, moments, &coef[s * m..], y, ws);
         if y.iter().any(|v| !v.is_finite()) {
-            y.copy_from_slice(&self.y0);
+            y.copy_from_slice(y0);
             return Err(Error::NonFinite("new state y₁"));
         }
         Ok(StepReport {
@@ -338,17 +546,16 @@ impl<S: System> EcStepper<S> {
                 "dense output needs 0 <= tau <= 1, got {tau}"
             )));
         }
-        let d = self.y0.len();
-        let r = self.coeffs.r;
-        let mut out = vec![0.0; d];
+        let y0 = self.buf.y0();
         if tau == 0.0 {
-            out.copy_from_slice(&self.y0);
-            return Ok(out);
+            return Ok(y0.to_vec());
         }
+        let r = self.kernel.r();
+        let mut out = vec![0.0; y0.len()];
         let bank = self.system.linear().phi_bank(self.h, &[tau], r)?;
         let mut ws = bank.workspace();
         let coef: Vec<f64> = (0..r).map(|k| self.h * tau.powi(k as i32 + 1)).collect();
-        bank.combine(0..1, &self.y0, &self.moments, &coef, &mut out, &mut ws);
+        bank.combine(0..1, y0, self.buf.moments(), &coef, &mut out, &mut ws);
         Ok(out)
     }
 }
