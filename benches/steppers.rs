@@ -1,0 +1,139 @@
+//! Fixed-order (`ecr_method!`) vs run-time stepper, and each against its kernel cost: the
+//! g-evaluations and φ-bank applications a step performs, timed alone. All in one run:
+//! `cargo bench --bench steppers`. Each iteration is 100 steps of r = 3 (order 6), h = 0.01,
+//! from the same start, on Duffing (ω = 5, k = 0.07) and the conservative wind problem (d = 2).
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use ecr::ecr_method;
+use ecr::runtime::operator::{Dense, DenseStatic, LinearOperator, PhiBank};
+use ecr::runtime::problems::{Duffing, Wind};
+use ecr::runtime::stepper::EcStepper;
+use ecr::runtime::system::Semilinear;
+use nalgebra::{DMatrix, SMatrix};
+use std::hint::black_box;
+
+ecr_method!(r = 3);
+
+const STEPS: usize = 100;
+const H: f64 = 0.01;
+
+fn bench_problem(
+    c: &mut Criterion,
+    name: &str,
+    a: DMatrix<f64>,
+    y0: [f64; 2],
+    g: fn(&[f64], &mut [f64]),
+) {
+    let sa: SMatrix<f64, 2, 2> = SMatrix::from_iterator(a.iter().copied());
+    let mut fixed: Ec3<_, 2> =
+        Ec3::fixed(Semilinear::new(DenseStatic::new(sa).unwrap(), g), H).unwrap();
+    let mut rt_dense =
+        EcStepper::new(Semilinear::new(Dense::new(a.clone()).unwrap(), g), 3, H).unwrap();
+    let mut rt_static =
+        EcStepper::new(Semilinear::new(DenseStatic::new(sa).unwrap(), g), 3, H).unwrap();
+
+    // The work of STEPS steps: g-evaluations and sweeps (each sweep = one combine over s stages).
+    let (mut g_evals, mut sweeps) = (0, 0);
+    let mut y = y0;
+    for _ in 0..STEPS {
+        let rep = fixed.step(&mut y).unwrap();
+        g_evals += rep.g_evals;
+        sweeps += rep.sweeps;
+    }
+    let s = 3;
+    let mut taus = Ec3Kernel::NODES.to_vec();
+    taus.push(1.0);
+    let bank = DenseStatic::new(sa).unwrap().phi_bank(H, &taus, 3).unwrap();
+    #[allow(clippy::let_unit_value)] // DenseStatic needs no workspace; generic code does
+    let mut ws = bank.workspace();
+    let coef = [H; 12];
+    let (mut stages, mut moments, mut gout) = ([0.0; 6], [0.1; 6], [0.0; 2]);
+
+    let mut group = c.benchmark_group(name);
+    group.bench_function("macro Ec3<_, 2> (DenseStatic)", |b| {
+        b.iter(|| {
+            let mut y = y0;
+            for _ in 0..STEPS {
+                fixed.step(black_box(&mut y)).unwrap();
+            }
+            y
+        })
+    });
+    group.bench_function("run-time EcStepper r=3 (Dense)", |b| {
+        b.iter(|| {
+            let mut y = y0.to_vec();
+            for _ in 0..STEPS {
+                rt_dense.step(black_box(&mut y)).unwrap();
+            }
+            y
+        })
+    });
+    group.bench_function("run-time EcStepper r=3 (DenseStatic)", |b| {
+        b.iter(|| {
+            let mut y = y0;
+            for _ in 0..STEPS {
+                rt_static.step(black_box(&mut y)).unwrap();
+            }
+            y
+        })
+    });
+    group.bench_function("kernel cost (g + φ-bank applications)", |b| {
+        b.iter(|| {
+            for _ in 0..g_evals {
+                g(black_box(&y0), &mut gout);
+            }
+            for _ in 0..sweeps {
+                bank.combine(
+                    0..s,
+                    black_box(&y0),
+                    &moments,
+                    &coef[..9],
+                    &mut stages,
+                    &mut ws,
+                );
+            }
+            for _ in 0..STEPS {
+                bank.combine(
+                    s..s + 1,
+                    black_box(&y0),
+                    &moments,
+                    &coef[9..],
+                    &mut gout,
+                    &mut ws,
+                );
+            }
+            moments[0] += gout[0] * 1e-300;
+            stages
+        })
+    });
+    group.finish();
+    println!("{name}: {STEPS} steps = {g_evals} g-evaluations, {sweeps} sweeps");
+}
+
+fn steppers(c: &mut Criterion) {
+    // g written out (k = 0.07; wind: (x1 x2, (x1² − x2²)/2)), so that the benchmark times the
+    // steppers, not the construction of problem structs.
+    fn duffing_g(y: &[f64], o: &mut [f64]) {
+        o[0] = 0.0;
+        o[1] = 2.0 * 0.07 * 0.07 * y[0] * y[0] * y[0];
+    }
+    fn wind_g(y: &[f64], o: &mut [f64]) {
+        o[0] = y[0] * y[1];
+        o[1] = 0.5 * (y[0] * y[0] - y[1] * y[1]);
+    }
+    let d = Duffing::default();
+    let dy = d.initial_value();
+    bench_problem(
+        c,
+        "duffing_d2",
+        d.linear_matrix(),
+        [dy[0], dy[1]],
+        duffing_g,
+    );
+    let w = Wind::conservative();
+    let wy = w.initial_value();
+    bench_problem(c, "wind_d2", w.linear_matrix(), [wy[0], wy[1]], wind_g);
+}
+
+criterion_group!(benches, steppers);
+criterion_main!(benches);

@@ -1,0 +1,193 @@
+//! Arguments of `ecr_method!`: `[vis,] key = value, …`.
+
+use proc_macro2::Span;
+use syn::parse::{Parse, ParseStream};
+use syn::{Ident, LitInt, Path, Token, Visibility};
+
+/// Method family requested with `family = …`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Family {
+    /// ECrP.
+    Ec,
+}
+
+/// Parsed and validated arguments.
+pub struct MethodArgs {
+    /// Visibility of every emitted item.
+    pub vis: Visibility,
+    /// r, with the span of its literal.
+    pub r: usize,
+    /// s (defaults to r).
+    pub s: usize,
+    /// Name of the stepper type alias.
+    pub name: Ident,
+    /// Family.
+    pub family: Family,
+    /// Path of the runtime crate, if given.
+    pub runtime: Option<Path>,
+}
+
+fn parse_usize(lit: &LitInt, key: &str) -> syn::Result<usize> {
+    if !lit.suffix().is_empty() && lit.suffix() != "usize" {
+        return Err(syn::Error::new(
+            lit.span(),
+            format!("`{key}` takes an unsuffixed integer"),
+        ));
+    }
+    lit.base10_parse::<usize>().map_err(|_| {
+        syn::Error::new(
+            lit.span(),
+            format!("`{key}` must be a non-negative integer"),
+        )
+    })
+}
+
+fn value_int(input: ParseStream, key: &Ident) -> syn::Result<LitInt> {
+    if input.peek(LitInt) {
+        input.parse()
+    } else {
+        // Consume whatever stands there so that the remaining keys still parse.
+        let tt: proc_macro2::TokenTree = input.parse()?;
+        Err(syn::Error::new(
+            tt.span(),
+            format!("`{key}` must be an integer literal, e.g. `{key} = 3`"),
+        ))
+    }
+}
+
+impl Parse for MethodArgs {
+    fn parse(input: ParseStream) -> syn::Result<Self> {
+        let call_site = Span::call_site();
+        let vis: Visibility = input.parse()?;
+        if !matches!(vis, Visibility::Inherited) && input.peek(Token![,]) {
+            input.parse::<Token![,]>()?;
+        }
+        let mut errors: Option<syn::Error> = None;
+        let mut push = |e: syn::Error| match &mut errors {
+            Some(all) => all.combine(e),
+            None => errors = Some(e),
+        };
+        let mut r: Option<(usize, Span)> = None;
+        let mut s: Option<(usize, Span)> = None;
+        let mut name: Option<Ident> = None;
+        let mut family: Option<Family> = None;
+        let mut runtime: Option<Path> = None;
+        let mut seen: Vec<String> = Vec::new();
+        while !input.is_empty() {
+            let key: Ident = input.parse()?;
+            input.parse::<Token![=]>()?;
+            let k = key.to_string();
+            if seen.contains(&k) {
+                push(syn::Error::new(key.span(), format!("duplicate key `{k}`")));
+            }
+            seen.push(k.clone());
+            match k.as_str() {
+                "r" | "s" => match value_int(input, &key)
+                    .and_then(|lit| Ok((parse_usize(&lit, &k)?, lit.span())))
+                {
+                    Ok(v) if k == "r" => r = Some(v),
+                    Ok(v) => s = Some(v),
+                    Err(e) => push(e),
+                },
+                "name" => name = Some(input.parse()?),
+                "family" => {
+                    let f: Ident = input.parse()?;
+                    match f.to_string().as_str() {
+                        "ec" => family = Some(Family::Ec),
+                        "tc" | "rknc" => push(syn::Error::new(
+                            f.span(),
+                            format!("family `{f}` is not available in ecr_method! yet (only `ec`)"),
+                        )),
+                        other => push(syn::Error::new(
+                            f.span(),
+                            format!(
+                                "unknown family `{other}`: expected `ec` (`tc`, `rknc` to come)"
+                            ),
+                        )),
+                    }
+                }
+                "runtime" => runtime = Some(input.parse()?),
+                other => {
+                    // Skip the value so that later keys are still checked.
+                    let _: proc_macro2::TokenTree = input.parse()?;
+                    push(syn::Error::new(
+                        key.span(),
+                        format!(
+                            "unknown key `{other}`: expected one of r, s, name, family, runtime"
+                        ),
+                    ))
+                }
+            }
+            if !input.is_empty() {
+                input.parse::<Token![,]>()?;
+            }
+        }
+        let r_checked = match r {
+            // Given but invalid: that error is already reported.
+            None if seen.iter().any(|k| k == "r") => None,
+            None => {
+                push(syn::Error::new(
+                    call_site,
+                    "missing `r = …`: the order parameter (order 2r)",
+                ));
+                None
+            }
+            Some((0, span)) => {
+                push(syn::Error::new(span, "r must be at least 1"));
+                None
+            }
+            Some((v, span)) if v > ecr_codegen::MAX_R => {
+                push(syn::Error::new(
+                    span,
+                    format!(
+                        "r = {v} is above the supported maximum {}",
+                        ecr_codegen::MAX_R
+                    ),
+                ));
+                None
+            }
+            Some((v, _)) => Some(v),
+        };
+        let s_checked = match (s, r_checked) {
+            (Some((sv, span)), Some(rv)) if sv < rv => {
+                push(syn::Error::new(
+                    span,
+                    format!("s = {sv} is below r = {rv}: the method needs s >= r points"),
+                ));
+                None
+            }
+            (Some((sv, span)), _) if sv > ecr_codegen::MAX_S => {
+                push(syn::Error::new(
+                    span,
+                    format!(
+                        "s = {sv} is above the supported maximum {}",
+                        ecr_codegen::MAX_S
+                    ),
+                ));
+                None
+            }
+            (Some((sv, _)), _) => Some(sv),
+            (None, rv) => rv,
+        };
+        if let Some(e) = errors {
+            return Err(e);
+        }
+        let (r, s) = (r_checked.expect("checked"), s_checked.expect("checked"));
+        let name = name.unwrap_or_else(|| {
+            let n = if s == r {
+                format!("Ec{r}")
+            } else {
+                format!("Ec{r}S{s}")
+            };
+            Ident::new(&n, call_site)
+        });
+        Ok(MethodArgs {
+            vis,
+            r,
+            s,
+            name,
+            family: family.unwrap_or(Family::Ec),
+            runtime,
+        })
+    }
+}

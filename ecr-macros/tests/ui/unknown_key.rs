@@ -1,0 +1,5 @@
+use ecr_runtime::ecr_method;
+
+ecr_method!(r = 3, order = 6);
+
+fn main() {}
