@@ -6,6 +6,7 @@ pub mod integrate;
 pub mod operator;
 pub mod phi;
 pub mod problems;
+pub mod second_order;
 pub mod special;
 pub mod stepper;
 pub mod system;
