@@ -40,6 +40,7 @@ fn first_order(
     })
 }
 
+#[allow(clippy::too_many_arguments)] // a test helper spelling out one comparison
 fn compare_with_ec(
     omega_m: DMatrix<f64>,
     omega: Omega,
