@@ -7,8 +7,12 @@ use syn::{Ident, LitInt, Path, Token, Visibility};
 /// Method family requested with `family = …`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Family {
-    /// ECrP.
+    /// ECrP (first-order systems).
     Ec,
+    /// TCrP (q'' + Ωq = −∇U).
+    Tc,
+    /// RKNCrP (Ω = 0).
+    Rknc,
 }
 
 /// Parsed and validated arguments.
@@ -94,15 +98,11 @@ impl Parse for MethodArgs {
                     let f: Ident = input.parse()?;
                     match f.to_string().as_str() {
                         "ec" => family = Some(Family::Ec),
-                        "tc" | "rknc" => push(syn::Error::new(
-                            f.span(),
-                            format!("family `{f}` is not available in ecr_method! yet (only `ec`)"),
-                        )),
+                        "tc" => family = Some(Family::Tc),
+                        "rknc" => family = Some(Family::Rknc),
                         other => push(syn::Error::new(
                             f.span(),
-                            format!(
-                                "unknown family `{other}`: expected `ec` (`tc`, `rknc` to come)"
-                            ),
+                            format!("unknown family `{other}`: expected `ec`, `tc` or `rknc`"),
                         )),
                     }
                 }
@@ -173,11 +173,17 @@ impl Parse for MethodArgs {
             return Err(e);
         }
         let (r, s) = (r_checked.expect("checked"), s_checked.expect("checked"));
+        let family = family.unwrap_or(Family::Ec);
         let name = name.unwrap_or_else(|| {
+            let prefix = match family {
+                Family::Ec => "Ec",
+                Family::Tc => "Tc",
+                Family::Rknc => "Rknc",
+            };
             let n = if s == r {
-                format!("Ec{r}")
+                format!("{prefix}{r}")
             } else {
-                format!("Ec{r}S{s}")
+                format!("{prefix}{r}S{s}")
             };
             Ident::new(&n, call_site)
         });
@@ -186,7 +192,7 @@ impl Parse for MethodArgs {
             r,
             s,
             name,
-            family: family.unwrap_or(Family::Ec),
+            family,
             runtime,
         })
     }

@@ -57,29 +57,28 @@ fn moments_body(r: usize, s: usize) -> TokenStream {
 /// Expands validated arguments into the kernel type, its `Kernel` impl and the stepper aliases.
 pub fn expand(args: &MethodArgs) -> syn::Result<TokenStream> {
     let (r, s, vis, name) = (args.r, args.s, &args.vis, &args.name);
-    let Family::Ec = args.family;
-    let table = ecr_codegen::MethodTable::generate(ecr_codegen::Family::Ec, r, s)
+    let family = match args.family {
+        Family::Ec => ecr_codegen::Family::Ec,
+        Family::Tc => ecr_codegen::Family::Tc,
+        Family::Rknc => ecr_codegen::Family::Rknc,
+    };
+    let table = ecr_codegen::MethodTable::generate(family, r, s)
         .map_err(|e| syn::Error::new(Span::call_site(), e.to_string()))?;
     let rt = runtime_path(args);
     let kernel = format_ident!("{}Kernel", name);
-    let dyn_name = format_ident!("{}Dyn", name);
     let moments = moments_body(r, s);
     let stages = (0..s).map(|j| quote!(__ecr_f(#j)?;));
+    let method = match args.family {
+        Family::Ec => "ECrP",
+        Family::Tc => "TCrP",
+        Family::Rknc => "RKNCrP",
+    };
     let doc_kernel = format!(
-        " Coefficients of ECrP with r = {r}, s = {s} (order {}), generated exactly at compile time by \
-         `ecr_method!`; moment and stage loops unrolled.",
+        " Coefficients of {method} with r = {r}, s = {s} (order {}), generated exactly at compile \
+         time by `ecr_method!`; moment and stage loops unrolled.",
         2 * r
     );
-    let doc_static = format!(
-        " ECrP of order {} (r = {r}, s = {s}) for a system of dimension `D` known at compile time: \
-         stage state in fixed-size arrays, no heap use per step.",
-        2 * r
-    );
-    let doc_dyn = format!(
-        " ECrP of order {} (r = {r}, s = {s}) for a dimension known at run time: stage state \
-         allocated once at construction.",
-        2 * r
-    );
+    let steppers = stepper_aliases(args, &rt, &kernel);
     Ok(quote! {
         #[doc = #doc_kernel]
         #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -117,13 +116,47 @@ pub fn expand(args: &MethodArgs) -> syn::Result<TokenStream> {
 
         impl #rt::stepper::FixedKernel for #kernel {}
 
+        #steppers
+    })
+}
+
+/// The stepper aliases of a family.
+fn stepper_aliases(args: &MethodArgs, rt: &TokenStream, kernel: &Ident) -> TokenStream {
+    let (r, s, vis, name) = (args.r, args.s, &args.vis, &args.name);
+    let dyn_name = format_ident!("{}Dyn", name);
+    let doc_static = format!(
+        " ECrP of order {} (r = {r}, s = {s}) for a system of dimension `D` known at compile time: \
+         stage state in fixed-size arrays, no heap use per step.",
+        2 * r
+    );
+    let doc_dyn = format!(
+        " ECrP of order {} (r = {r}, s = {s}) for a dimension known at run time: stage state \
+         allocated once at construction.",
+        2 * r
+    );
+    if args.family != Family::Ec {
+        let what = if args.family == Family::Tc {
+            "TCrP, for q'' + Ωq = −∇U(q)"
+        } else {
+            "RKNCrP, for q'' = −∇U(q) (Ω = 0)"
+        };
+        let doc = format!(
+            " {what}: order {} (r = {r}, s = {s}); stage state allocated once at construction.",
+            2 * r
+        );
+        return quote! {
+            #[doc = #doc]
+            #vis type #name<Sys> = #rt::second_order::TcStepper<Sys, #kernel>;
+        };
+    }
+    quote! {
         #[doc = #doc_static]
         #vis type #name<Sys, const D: usize> =
             #rt::stepper::Stepper<#kernel, Sys, #rt::stepper::StaticBuffers<D, #s, #r>>;
 
         #[doc = #doc_dyn]
         #vis type #dyn_name<Sys> = #rt::stepper::Stepper<#kernel, Sys, #rt::stepper::VecBuffers>;
-    })
+    }
 }
 
 #[cfg(test)]
@@ -163,6 +196,21 @@ mod tests {
         let args: MethodArgs = parse_quote!(r = 3, s = 5, runtime = ::rt);
         assert_eq!(args.name.to_string(), "Ec3S5");
         assert!(matches!(args.vis, syn::Visibility::Inherited));
+    }
+
+    #[test]
+    fn second_order_families() {
+        let out = expand_str(parse_quote!(r = 2, family = tc, runtime = ::rt));
+        assert!(
+            out.contains(
+                "type Tc2 < Sys > = :: rt :: second_order :: TcStepper < Sys , Tc2Kernel >"
+            )
+        );
+        assert!(!out.contains("StaticBuffers"));
+        let out = expand_str(parse_quote!(r = 2, family = rknc, runtime = ::rt));
+        assert!(out.contains("type Rknc2 < Sys >"));
+        // The RKN tableau comes with the RKNC kernel.
+        assert!(out.contains("pub const ABAR"));
     }
 
     #[test]

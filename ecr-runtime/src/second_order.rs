@@ -21,7 +21,7 @@
 
 use crate::phi::phi_trig;
 use crate::stepper::{
-    Kernel, ROUNDOFF_RESIDUAL, RuntimeKernel, SolverSettings, StepReport, SweepLimit,
+    FixedKernel, Kernel, ROUNDOFF_RESIDUAL, RuntimeKernel, SolverSettings, StepReport, SweepLimit,
 };
 use crate::{Error, Result};
 use nalgebra::DMatrix;
@@ -331,6 +331,17 @@ impl<S: SecondOrderSystem> TcStepper<S> {
         settings: SolverSettings,
     ) -> Result<Self> {
         Self::from_kernel(RuntimeKernel::new(r, s)?, system, h, settings)
+    }
+}
+
+impl<S: SecondOrderSystem, K: FixedKernel> TcStepper<S, K> {
+    /// The fixed-order stepper (kernel emitted by `ecr_method!(family = tc | rknc, …)`) with
+    /// default solver settings.
+    ///
+    /// # Errors
+    /// As [`TcStepper::from_kernel`].
+    pub fn fixed(system: S, h: f64) -> Result<Self> {
+        Self::from_kernel(K::default(), system, h, SolverSettings::default())
     }
 }
 

@@ -205,3 +205,43 @@ fn bad_omega_is_an_error() {
     assert!(om.eigenvalues().iter().all(|&l| l >= 0.0));
     let _ = sys.energy(&[0.0, 0.0], &[0.0, 0.0]);
 }
+
+mod fixed {
+    use ecr_runtime::ecr_method;
+    ecr_method!(pub r = 3, family = tc);
+    ecr_method!(pub r = 2, s = 4, family = rknc);
+    ecr_method!(pub r = 5, s = 7, family = tc, name = Tc5Wide);
+}
+
+#[test]
+fn macro_tc_and_rknc_steppers_equal_the_run_time_stepper() {
+    let om = coupled_omega();
+    let cases: Vec<(Omega, usize, usize)> = vec![
+        (Omega::dense(om.clone()).unwrap(), 3, 3),
+        (Omega::zero(3), 2, 4),
+        (Omega::diagonal(vec![4.0, 9.0, 100.0]).unwrap(), 5, 7),
+    ];
+    for (omega, r, s) in cases {
+        let sys = SecondOrder::new(omega, coupled_force);
+        let h = 0.02;
+        let mut rt = TcStepper::with_nodes(&sys, r, s, h, SolverSettings::default()).unwrap();
+        let (mut q1, mut p1) = (vec![0.3, -0.2, 0.5], vec![0.1, 0.4, -0.3]);
+        let (mut q2, mut p2) = (q1.clone(), p1.clone());
+        macro_rules! run {
+            ($ty:ty) => {{
+                let mut st: $ty = <$ty>::fixed(&sys, h).unwrap();
+                for n in 0..300 {
+                    st.step(&mut q1, &mut p1).unwrap();
+                    rt.step(&mut q2, &mut p2).unwrap();
+                    assert_eq!(q1, q2, "r = {r}, s = {s}, step {n}");
+                    assert_eq!(p1, p2, "r = {r}, s = {s}, step {n}");
+                }
+            }};
+        }
+        match (r, s) {
+            (3, 3) => run!(fixed::Tc3<_>),
+            (2, 4) => run!(fixed::Rknc2S4<_>),
+            _ => run!(fixed::Tc5Wide<_>),
+        }
+    }
+}

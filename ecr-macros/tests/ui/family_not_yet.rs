@@ -1,5 +1,0 @@
-use ecr_runtime::ecr_method;
-
-ecr_method!(r = 3, family = tc);
-
-fn main() {}
