@@ -34,11 +34,13 @@
 use nalgebra::DMatrix;
 
 mod duffing;
+mod fpu;
 mod nls;
 mod systems;
 mod wind;
 
 pub use duffing::Duffing;
+pub use fpu::Fpu;
 pub use nls::Nls;
 pub use systems::{DuffingSystem, NlsDenseSystem, NlsSystem, ProblemSystem, WindSystem};
 pub use wind::Wind;
