@@ -20,8 +20,9 @@
 //! # Ok::<(), ecr_runtime::Error>(())
 //! ```
 
-use super::{Duffing, Nls, TestProblem, Wind};
+use super::{Duffing, Fpu, Nls, TestProblem, Wind};
 use crate::operator::{Circulant, Dense, LinearOperator, SkewPair};
+use crate::second_order::{Omega, SecondOrderSystem};
 use crate::system::System;
 use crate::{Error, Result};
 
@@ -90,6 +91,74 @@ impl<P: TestProblem, Op: LinearOperator> System for ProblemSystem<P, Op> {
     }
     fn energy(&self, y: &[f64]) -> Option<f64> {
         Some(self.problem.energy(y))
+    }
+}
+
+/// The Fermi–Pasta–Ulam chain as a second-order system q'' + Ωq = −∇U(q), Ω diagonal
+/// (for [`crate::second_order::TcStepper`]; Ω = 0 when ω = 0, an RKNC problem).
+#[derive(Clone, Debug)]
+pub struct FpuSystem {
+    fpu: Fpu,
+    omega: Omega,
+}
+
+impl SecondOrderSystem for FpuSystem {
+    fn omega(&self) -> &Omega {
+        &self.omega
+    }
+    fn force(&self, q: &[f64], out: &mut [f64]) {
+        self.fpu.grad_u(q, out)
+    }
+    fn potential(&self, q: &[f64]) -> Option<f64> {
+        Some(self.fpu.potential_u(q))
+    }
+    fn energy(&self, q: &[f64], p: &[f64]) -> Option<f64> {
+        Some(self.fpu.energy(q, p))
+    }
+}
+
+/// The Fermi–Pasta–Ulam chain in first-order form y = (q, p), A = [[0, I], [−Ω, 0]] dense
+/// (for ECrP, e.g. to compare with TCrP).
+#[derive(Clone, Debug)]
+pub struct FpuFirstOrderSystem {
+    fpu: Fpu,
+    op: Dense,
+}
+
+impl System for FpuFirstOrderSystem {
+    type Op = Dense;
+    fn linear(&self) -> &Dense {
+        &self.op
+    }
+    fn nonlinear(&self, y: &[f64], out: &mut [f64], _scratch: &mut [f64]) {
+        self.fpu.nonlinear_first_order(y, out)
+    }
+    fn energy(&self, y: &[f64]) -> Option<f64> {
+        Some(self.fpu.energy_first_order(y))
+    }
+}
+
+impl Fpu {
+    /// The second-order system (diagonal Ω).
+    ///
+    /// # Errors
+    /// Never for a valid `Fpu`; the `Result` is for uniformity.
+    pub fn system(&self) -> Result<FpuSystem> {
+        Ok(FpuSystem {
+            fpu: self.clone(),
+            omega: Omega::diagonal(self.omega_diagonal())?,
+        })
+    }
+
+    /// The first-order form as a [`System`] with a dense linear part.
+    ///
+    /// # Errors
+    /// [`Error::NonFinite`] if ω² overflows.
+    pub fn first_order_system(&self) -> Result<FpuFirstOrderSystem> {
+        Ok(FpuFirstOrderSystem {
+            fpu: self.clone(),
+            op: Dense::new(self.linear_matrix())?,
+        })
     }
 }
 
