@@ -204,6 +204,12 @@ fn bad_input_gives_one_line_and_exit_2() {
         (&[], &["--method", "tc"]),
         (&[], &["--method", "rknc"]),
         (&[], &["--method", "rk4"]),
+        (&[("--problem", "fpu")], &["--method", "rknc"]),
+        (
+            &[("--problem", "fpu")],
+            &["--method", "tc", "--omega", "-1"],
+        ),
+        (&[("--problem", "fpu")], &["--method", "tc", "--theta", "1"]),
         (&[], &["--tolerance", "-1"]),
         (&[], &["--max-sweeps", "0"]),
         (&[], &["--bogus"]),
@@ -231,6 +237,47 @@ fn bad_input_gives_one_line_and_exit_2() {
         assert_eq!(code, 2, "{args:?}: {err}");
         assert_eq!(err.lines().count(), 1, "{args:?}: {err}");
     }
+}
+
+#[test]
+fn fpu_with_tc_rknc_and_ec() {
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "run",
+            "--problem",
+            "fpu",
+            "--r",
+            "2",
+            "--h",
+            "0.01",
+            "--t-end",
+            "1",
+        ];
+        args.extend_from_slice(extra);
+        let (code, out, err) = ecr(&args);
+        assert_eq!(code, 0, "{args:?}: {err}");
+        serde_json::from_str::<serde_json::Value>(&out).unwrap()
+    };
+    let tc = run(&["--method", "tc"]);
+    let ec = run(&["--method", "ec"]);
+    assert_eq!(tc["method"], "tc");
+    assert_eq!(tc["steps"], 100);
+    assert_eq!(tc["y"].as_array().unwrap().len(), 12);
+    // TCrP and ECrP on the first-order form are the same method.
+    for (a, b) in tc["y"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .zip(ec["y"].as_array().unwrap())
+    {
+        assert!((a.as_f64().unwrap() - b.as_f64().unwrap()).abs() < 1e-13);
+    }
+    assert!(tc["max_energy_error"].as_f64().unwrap() < 1e-5);
+    let rknc = run(&["--method", "rknc", "--omega", "0"]);
+    assert_eq!(rknc["parameters"]["omega"], 0.0);
+    // RKNC is ECrP with the nilpotent A = [[0, I], [0, 0]] (not A = 0), so H is nearly, not
+    // exactly, conserved: O(h⁴) ≈ 3e-9 here.
+    assert!(rknc["max_energy_error"].as_f64().unwrap() < 1e-7);
 }
 
 #[test]

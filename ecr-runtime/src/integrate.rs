@@ -1,8 +1,69 @@
 //! Fixed-step integration over [t0, T] with observers and a final report.
 
-use crate::stepper::EcStepper;
+use crate::second_order::{SecondOrderSystem, TcStepper};
+use crate::stepper::{Buffers, Kernel, StepReport, Stepper};
 use crate::system::System;
 use crate::{Error, Result};
+
+/// A one-step method with a fixed step size acting on a flat state vector: what
+/// [`integrate`] drives. Implemented by [`Stepper`] (state y) and [`TcStepper`] (state
+/// (q, p), concatenated).
+pub trait Integrator {
+    /// The step size.
+    fn step_size(&self) -> f64;
+    /// Changes the step size.
+    ///
+    /// # Errors
+    /// As the stepper's `set_step_size`.
+    fn set_step_size(&mut self, h: f64) -> Result<()>;
+    /// One step of the flat state in place.
+    ///
+    /// # Errors
+    /// As the stepper's `step`.
+    fn step_state(&mut self, y: &mut [f64]) -> Result<StepReport>;
+    /// The energy of a flat state, if known.
+    fn energy_of(&self, y: &[f64]) -> Option<f64>;
+}
+
+impl<K: Kernel, S: System, B: Buffers> Integrator for Stepper<K, S, B> {
+    fn step_size(&self) -> f64 {
+        Stepper::step_size(self)
+    }
+    fn set_step_size(&mut self, h: f64) -> Result<()> {
+        Stepper::set_step_size(self, h)
+    }
+    fn step_state(&mut self, y: &mut [f64]) -> Result<StepReport> {
+        self.step(y)
+    }
+    fn energy_of(&self, y: &[f64]) -> Option<f64> {
+        self.system().energy(y)
+    }
+}
+
+impl<S: SecondOrderSystem, K: Kernel> Integrator for TcStepper<S, K> {
+    fn step_size(&self) -> f64 {
+        TcStepper::step_size(self)
+    }
+    fn set_step_size(&mut self, h: f64) -> Result<()> {
+        TcStepper::set_step_size(self, h)
+    }
+    fn step_state(&mut self, y: &mut [f64]) -> Result<StepReport> {
+        let d = self.system().omega().dim();
+        if y.len() != 2 * d {
+            return Err(Error::DimensionMismatch {
+                what: "state (q, p)",
+                expected: 2 * d,
+                found: y.len(),
+            });
+        }
+        let (q, p) = y.split_at_mut(d);
+        self.step(q, p)
+    }
+    fn energy_of(&self, y: &[f64]) -> Option<f64> {
+        let d = y.len() / 2;
+        self.system().energy(&y[..d], &y[d..])
+    }
+}
 
 /// Summary of an integration.
 #[derive(Clone, Debug, PartialEq)]
@@ -47,7 +108,8 @@ impl Default for IntegrateOptions {
     }
 }
 
-/// Integrates from (t0, y) to t_end with the stepper's step size h, in place.
+/// Integrates from (t0, y) to t_end with the stepper's step size h, in place (for a
+/// [`TcStepper`], y = (q, p)).
 ///
 /// Takes ⌈(t_end − t0)/h⌉ steps; if h does not divide the interval (to 1e−9 relative), the
 /// last step is shortened (its φ-bank is built once, then the original h restored). The
@@ -56,8 +118,8 @@ impl Default for IntegrateOptions {
 /// # Errors
 /// [`Error::InvalidInput`] if t0 or t_end is not finite or t_end < t0, and any step error
 /// (the state is left at the last successful step).
-pub fn integrate<S: System>(
-    stepper: &mut EcStepper<S>,
+pub fn integrate<I: Integrator>(
+    stepper: &mut I,
     t0: f64,
     t_end: f64,
     y: &mut [f64],
@@ -81,7 +143,7 @@ pub fn integrate<S: System>(
     let rest = span - n_full as f64 * h;
     let extra = rest > 1e-9 * h.max(span);
     let steps = n_full + usize::from(extra);
-    let e0 = stepper.system().energy(y);
+    let e0 = stepper.energy_of(y);
     let scale = e0.map(|e| e.abs().max(f64::MIN_POSITIVE));
     let mut report = Report {
         t_end: t0,
@@ -102,7 +164,7 @@ pub fn integrate<S: System>(
         if last_short {
             stepper.set_step_size(rest)?;
         }
-        let rep = stepper.step(y);
+        let rep = stepper.step_state(y);
         if last_short {
             stepper.set_step_size(h)?;
         }
@@ -118,7 +180,7 @@ pub fn integrate<S: System>(
             n == steps || (options.energy_every > 0 && n % options.energy_every == 0);
         let observe = options.observe_every > 0 && (n % options.observe_every == 0 || n == steps);
         if check_energy || observe {
-            let e = stepper.system().energy(y);
+            let e = stepper.energy_of(y);
             if let (Some(e), Some(e0), Some(sc), Some(m)) =
                 (e, e0, scale, report.max_energy_error.as_mut())
             {

@@ -2,10 +2,10 @@
 
 use super::UsageError;
 use clap::{Args, ValueEnum};
-use ecr_runtime::integrate::{IntegrateOptions, Report, integrate};
-use ecr_runtime::problems::{Duffing, Nls, Wind};
+use ecr_runtime::integrate::{IntegrateOptions, Integrator, Report, integrate};
+use ecr_runtime::problems::{Duffing, Fpu, Nls, Wind};
+use ecr_runtime::second_order::TcStepper;
 use ecr_runtime::stepper::{EcStepper, SolverSettings};
-use ecr_runtime::system::System;
 use serde_json::{Value, json};
 use std::io::Write;
 use std::time::Instant;
@@ -23,6 +23,8 @@ enum ProblemArg {
     WindDissipative,
     /// Problem 3: cubic nonlinear Schrödinger equation, pseudospectral (FFT linear part).
     Nls,
+    /// Fermi–Pasta–Ulam chain with stiff springs (Hairer–Lubich–Wanner), q'' + Ωq = −∇U(q).
+    Fpu,
 }
 
 impl ProblemArg {
@@ -32,6 +34,7 @@ impl ProblemArg {
             ProblemArg::Wind => "wind",
             ProblemArg::WindDissipative => "wind-dissipative",
             ProblemArg::Nls => "nls",
+            ProblemArg::Fpu => "fpu",
         }
     }
 }
@@ -40,10 +43,20 @@ impl ProblemArg {
 enum MethodArg {
     /// Exponential collocation ECrP (first-order systems).
     Ec,
-    /// Trigonometric collocation TCr (not available yet).
+    /// Trigonometric collocation TCrP (second-order problems: fpu).
     Tc,
-    /// RKN collocation RKNCr (not available yet).
+    /// RKN collocation RKNCrP (second-order problems with Ω = 0: fpu --omega 0).
     Rknc,
+}
+
+impl MethodArg {
+    fn name(self) -> &'static str {
+        match self {
+            MethodArg::Ec => "ec",
+            MethodArg::Tc => "tc",
+            MethodArg::Rknc => "rknc",
+        }
+    }
 }
 
 /// Arguments of `ecr run`.
@@ -60,7 +73,8 @@ pub struct RunArgs {
     /// Test problem.
     #[arg(long, value_enum)]
     problem: ProblemArg,
-    /// Duffing frequency ω [default: 5].
+    /// Frequency ω: Duffing [default: 5]; FPU stiff-spring frequency [default: 50; 0 gives
+    /// Ω = 0, a problem for --method rknc].
     #[arg(long, allow_negative_numbers = true)]
     omega: Option<f64>,
     /// Duffing nonlinearity k, |k| ≤ ω [default: 0.07].
@@ -75,7 +89,7 @@ pub struct RunArgs {
     /// NLS grid size N (even) [default: 128].
     #[arg(long)]
     n: Option<usize>,
-    /// Method family (only `ec` is implemented so far).
+    /// Method family: ec (any problem; fpu in first-order form), tc or rknc (fpu).
     #[arg(long, value_enum, default_value = "ec")]
     method: MethodArg,
     /// Order parameter r (the method has order 2r).
@@ -129,14 +143,12 @@ struct Outcome {
     seconds: f64,
 }
 
-fn run_system<S: System>(
-    system: S,
+fn run_system<I: Integrator>(
+    stepper: Result<I, ecr_runtime::Error>,
     y0: Vec<f64>,
     args: &RunArgs,
-    settings: SolverSettings,
 ) -> Result<Outcome, UsageError> {
-    let s = args.s.unwrap_or(args.r);
-    let mut stepper = EcStepper::with_nodes(system, args.r, s, args.h, settings).map_err(usage)?;
+    let mut stepper = stepper.map_err(usage)?;
     let mut y = y0;
     let start = Instant::now();
     let report = integrate(
@@ -159,18 +171,17 @@ fn run_system<S: System>(
 }
 
 fn check_inputs(args: &RunArgs) -> Result<(), UsageError> {
-    match args.method {
-        MethodArg::Ec => {}
-        MethodArg::Tc | MethodArg::Rknc => {
-            let name = if args.method == MethodArg::Tc {
-                "tc"
-            } else {
-                "rknc"
-            };
-            return Err(UsageError(format!(
-                "method '{name}' is not implemented for 'ecr run' yet; use --method ec"
-            )));
-        }
+    if args.method != MethodArg::Ec && args.problem != ProblemArg::Fpu {
+        return Err(UsageError(format!(
+            "method '{}' integrates second-order problems (fpu); use --method ec for {}",
+            args.method.name(),
+            args.problem.name()
+        )));
+    }
+    if args.method == MethodArg::Rknc && args.omega.unwrap_or(50.0) != 0.0 {
+        return Err(UsageError(
+            "method 'rknc' is for Ω = 0: use --problem fpu --omega 0 (or --method tc)".to_string(),
+        ));
     }
     if !(args.h.is_finite() && args.h > 0.0) {
         return Err(UsageError(format!(
@@ -203,7 +214,13 @@ fn check_inputs(args: &RunArgs) -> Result<(), UsageError> {
     let p = args.problem;
     let duffing = p == ProblemArg::Duffing;
     let wind = matches!(p, ProblemArg::Wind | ProblemArg::WindDissipative);
-    only_for(!duffing && args.omega.is_some(), "omega", "duffing", p)?;
+    let with_omega = duffing || p == ProblemArg::Fpu;
+    only_for(
+        !with_omega && args.omega.is_some(),
+        "omega",
+        "duffing and fpu",
+        p,
+    )?;
     only_for(!duffing && args.k.is_some(), "k", "duffing", p)?;
     let winds = "wind and wind-dissipative";
     only_for(!wind && args.theta.is_some(), "theta", winds, p)?;
@@ -231,12 +248,17 @@ fn solver_settings(args: &RunArgs) -> SolverSettings {
 pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), UsageError> {
     check_inputs(args)?;
     let settings = solver_settings(args);
+    let s = args.s.unwrap_or(args.r);
     let (outcome, parameters, global_error) = match args.problem {
         ProblemArg::Duffing => {
             let problem =
                 Duffing::new(args.omega.unwrap_or(5.0), args.k.unwrap_or(0.07)).map_err(usage)?;
             let system = problem.system().map_err(usage)?;
-            let o = run_system(system, problem.initial_value(), args, settings)?;
+            let o = run_system(
+                EcStepper::with_nodes(system, args.r, s, args.h, settings),
+                problem.initial_value(),
+                args,
+            )?;
             let exact = problem.exact(o.report.t_end).map_err(usage)?;
             let err =
                 o.y.iter()
@@ -254,7 +276,11 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), UsageError> {
             }
             .map_err(usage)?;
             let system = problem.system().map_err(usage)?;
-            let o = run_system(system, problem.initial_value(), args, settings)?;
+            let o = run_system(
+                EcStepper::with_nodes(system, args.r, s, args.h, settings),
+                problem.initial_value(),
+                args,
+            )?;
             let params = json!({
                 "theta": problem.theta(),
                 "amplitude": problem.radius(),
@@ -265,15 +291,52 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), UsageError> {
         ProblemArg::Nls => {
             let problem = Nls::new(args.n.unwrap_or(128)).map_err(usage)?;
             let system = problem.system().map_err(usage)?;
-            let o = run_system(system, problem.initial_value(), args, settings)?;
+            let o = run_system(
+                EcStepper::with_nodes(system, args.r, s, args.h, settings),
+                problem.initial_value(),
+                args,
+            )?;
             (o, json!({ "n": problem.n() }), None)
+        }
+        ProblemArg::Fpu => {
+            let problem = Fpu::new(3, args.omega.unwrap_or(50.0)).map_err(usage)?;
+            let y0 = problem.initial_value_first_order();
+            let o = match args.method {
+                MethodArg::Ec => run_system(
+                    EcStepper::with_nodes(
+                        problem.first_order_system().map_err(usage)?,
+                        args.r,
+                        s,
+                        args.h,
+                        settings,
+                    ),
+                    y0,
+                    args,
+                )?,
+                MethodArg::Tc | MethodArg::Rknc => run_system(
+                    TcStepper::with_nodes(
+                        problem.system().map_err(usage)?,
+                        args.r,
+                        s,
+                        args.h,
+                        settings,
+                    ),
+                    y0,
+                    args,
+                )?,
+            };
+            (
+                o,
+                json!({ "m": problem.m(), "omega": problem.omega() }),
+                None,
+            )
         }
     };
     let Outcome { report, y, seconds } = outcome;
     let value: Value = json!({
         "problem": args.problem.name(),
         "parameters": parameters,
-        "method": "ec",
+        "method": args.method.name(),
         "r": args.r,
         "s": args.s.unwrap_or(args.r),
         "h": args.h,
