@@ -576,3 +576,64 @@ impl<S: SecondOrderSystem, K: Kernel> TcStepper<S, K> {
         })
     }
 }
+
+/// The damped second-order system q'' − Nq' + Ωq = −∇U(q) (paper eq. `2oprob`, N symmetric
+/// negative semidefinite) in first-order form y = (q, p), p = q':
+/// y' = [[0, I], [−Ω, N]] y + (0, −∇U(q)), with the Lyapunov function
+/// H = ½pᵀp + ½qᵀΩq + U(q) (paper eq. `H2`). Integrate it with ECrP
+/// ([`crate::stepper::EcStepper`]); N = 0 is the conservative case.
+///
+/// # Errors
+/// [`Error::NotSquare`], [`Error::DimensionMismatch`], [`Error::NonFinite`], and
+/// [`Error::InvalidInput`] if Ω is not symmetric positive semidefinite or N is not symmetric
+/// negative semidefinite.
+pub fn damped_first_order<F, U>(
+    omega: DMatrix<f64>,
+    n: DMatrix<f64>,
+    grad_u: F,
+    u: U,
+) -> Result<
+    crate::system::Semilinear<
+        crate::operator::Dense,
+        impl Fn(&[f64], &mut [f64]),
+        impl Fn(&[f64]) -> f64,
+    >,
+>
+where
+    F: Fn(&[f64], &mut [f64]),
+    U: Fn(&[f64]) -> f64,
+{
+    let om = Omega::dense(omega.clone())?;
+    let d = om.dim();
+    if n.shape() != (d, d) {
+        return Err(Error::DimensionMismatch {
+            what: "N and Ω",
+            expected: d,
+            found: n.nrows(),
+        });
+    }
+    // N ≤ 0 ⇔ −N is positive semidefinite.
+    Omega::dense(-&n).map_err(|e| match e {
+        Error::InvalidInput(_) => {
+            Error::InvalidInput("N must be symmetric negative semidefinite".into())
+        }
+        other => other,
+    })?;
+    let mut a = DMatrix::zeros(2 * d, 2 * d);
+    a.view_mut((0, d), (d, d)).fill_with_identity();
+    a.view_mut((d, 0), (d, d)).copy_from(&(-&omega));
+    a.view_mut((d, d), (d, d)).copy_from(&n);
+    let g = move |y: &[f64], out: &mut [f64]| {
+        out[..d].fill(0.0);
+        grad_u(&y[..d], &mut out[d..]);
+        out[d..].iter_mut().for_each(|x| *x = -*x);
+    };
+    let h = move |y: &[f64]| {
+        0.5 * y[d..].iter().map(|x| x * x).sum::<f64>() + om.half_quadratic(&y[..d]) + u(&y[..d])
+    };
+    Ok(crate::system::Semilinear::with_energy(
+        crate::operator::Dense::new(a)?,
+        g,
+        h,
+    ))
+}

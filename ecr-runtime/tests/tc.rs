@@ -245,3 +245,45 @@ fn macro_tc_and_rknc_steppers_equal_the_run_time_stepper() {
         }
     }
 }
+
+#[test]
+fn damped_form_dissipates_and_n_zero_conserves() {
+    use ecr_runtime::second_order::damped_first_order;
+    use ecr_runtime::system::System;
+    let om = coupled_omega();
+    let u = |q: &[f64]| q.iter().map(|x| x.powi(4) / 4.0).sum::<f64>() + q[0] * q[1] * q[2];
+    let y0 = [0.3, -0.2, 0.5, 0.1, 0.4, -0.3];
+    // N = −0.1 I: H strictly decreases.
+    let n = DMatrix::<f64>::identity(3, 3) * -0.1;
+    let sys = damped_first_order(om.clone(), n, coupled_force, u).unwrap();
+    let mut st = EcStepper::new(&sys, 2, 0.01).unwrap();
+    let mut y = y0.to_vec();
+    let mut e = sys.energy(&y).unwrap();
+    for _ in 0..2000 {
+        st.step(&mut y).unwrap();
+        let en = sys.energy(&y).unwrap();
+        assert!(en < e, "H rose: {e} -> {en}");
+        e = en;
+    }
+    // N = 0: conservative, and the same steps as TCrP.
+    let sys = damped_first_order(om.clone(), DMatrix::zeros(3, 3), coupled_force, u).unwrap();
+    let mut st = EcStepper::new(&sys, 2, 0.01).unwrap();
+    let mut tc = TcStepper::new(
+        SecondOrder::new(Omega::dense(om.clone()).unwrap(), coupled_force),
+        2,
+        0.01,
+    )
+    .unwrap();
+    let (mut y, mut q, mut p) = (y0.to_vec(), y0[..3].to_vec(), y0[3..].to_vec());
+    for _ in 0..100 {
+        st.step(&mut y).unwrap();
+        tc.step(&mut q, &mut p).unwrap();
+    }
+    let qp: Vec<f64> = q.iter().chain(&p).copied().collect();
+    assert!(max_abs_diff(&qp, &y) <= 1e-13);
+    // Bad N.
+    let bad = damped_first_order(om.clone(), DMatrix::<f64>::identity(3, 3), coupled_force, u);
+    assert!(matches!(bad, Err(Error::InvalidInput(_))));
+    let bad = damped_first_order(om, DMatrix::zeros(2, 2), coupled_force, u);
+    assert!(matches!(bad, Err(Error::DimensionMismatch { .. })));
+}
