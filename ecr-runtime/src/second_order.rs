@@ -587,6 +587,7 @@ impl<S: SecondOrderSystem, K: Kernel> TcStepper<S, K> {
 /// [`Error::NotSquare`], [`Error::DimensionMismatch`], [`Error::NonFinite`], and
 /// [`Error::InvalidInput`] if Ω is not symmetric positive semidefinite or N is not symmetric
 /// negative semidefinite.
+#[allow(clippy::type_complexity)] // the closures' types are unnameable: impl Trait is the point
 pub fn damped_first_order<F, U>(
     omega: DMatrix<f64>,
     n: DMatrix<f64>,
