@@ -17,7 +17,7 @@ use num_traits::{One, Signed, Zero};
 use std::cmp::Ordering;
 
 /// Which quadrature family.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum QuadratureKind {
     /// s-point Gauss–Legendre: roots of P̃ₛ, exact for degree 2s − 1.
     GaussLegendre,

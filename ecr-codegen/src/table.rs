@@ -5,7 +5,7 @@
 use crate::interval::Interval;
 use crate::legendre::{beta, c_matrix, shifted_legendre};
 use crate::poly::Poly;
-use crate::quadrature::{Quadrature, working_bits};
+use crate::quadrature::{Quadrature, QuadratureKind, working_bits};
 use crate::rat::{Rat, inv_factorial, to_decimal};
 use crate::{CodegenError, MAX_R, MAX_S};
 use num_bigint::BigInt;
@@ -79,8 +79,10 @@ pub struct MethodTable {
     pub family: Family,
     /// Order parameter: the method has order 2r, r moments.
     pub r: usize,
-    /// Number of Gauss–Legendre points (s ≥ r; s = r is the paper's method).
+    /// Number of quadrature points (s ≥ r; s = r with Gauss–Legendre is the paper's method).
     pub s: usize,
+    /// The quadrature: Gauss–Legendre (ECrP, TCrP, RKNCrP) or Gauss–Lobatto (HBVM baselines).
+    pub quadrature: QuadratureKind,
     /// Gauss–Legendre nodes cᵢ on [0, 1].
     pub nodes: Vec<Certified>,
     /// Gauss–Legendre weights bᵢ.
@@ -140,11 +142,29 @@ impl MethodTable {
     /// [`CodegenError::ROutOfRange`] unless 1 ≤ r ≤ [`MAX_R`]; [`CodegenError::SOutOfRange`]
     /// unless r ≤ s ≤ [`MAX_S`].
     pub fn generate(family: Family, r: usize, s: usize) -> Result<MethodTable, CodegenError> {
+        Self::generate_with(family, r, s, QuadratureKind::GaussLegendre)
+    }
+
+    /// As [`MethodTable::generate`] with a choice of quadrature. With Gauss–Lobatto points and
+    /// A = 0 the method is HBVM(s, r) on Lobatto abscissae (s = 5, r = 2: RKEPC2, the paper's
+    /// "extended Lobatto IIIA of order four").
+    ///
+    /// # Errors
+    /// As [`MethodTable::generate`]; Gauss–Lobatto also needs s ≥ 2.
+    pub fn generate_with(
+        family: Family,
+        r: usize,
+        s: usize,
+        quadrature: QuadratureKind,
+    ) -> Result<MethodTable, CodegenError> {
         check_rs(r, s)?;
+        if quadrature == QuadratureKind::GaussLobatto && s < 2 {
+            return Err(CodegenError::SOutOfRange { r, s });
+        }
         let betas: Vec<Poly> = (0..r).map(|k| beta(r, k)).collect();
         let mut bits = 256;
         loop {
-            if let Some(t) = Self::try_generate(family, r, s, &betas, bits) {
+            if let Some(t) = Self::try_generate(family, r, s, quadrature, &betas, bits) {
                 return Ok(t);
             }
             bits *= 2;
@@ -158,10 +178,14 @@ impl MethodTable {
         family: Family,
         r: usize,
         s: usize,
+        quadrature: QuadratureKind,
         betas: &[Poly],
         bits: u32,
     ) -> Option<MethodTable> {
-        let q = Quadrature::gauss_legendre(s, bits);
+        let q = match quadrature {
+            QuadratureKind::GaussLegendre => Quadrature::gauss_legendre(s, bits),
+            QuadratureKind::GaussLobatto => Quadrature::gauss_lobatto(s, bits),
+        };
         let work = working_bits(bits);
         let w_iv: Vec<Vec<Interval>> = betas
             .iter()
@@ -214,6 +238,7 @@ impl MethodTable {
             family,
             r,
             s,
+            quadrature,
             nodes: certify_all(q.nodes.clone())?,
             weights: certify_all(q.weights.clone())?,
             w: w_iv

@@ -1,6 +1,7 @@
 //! Runtime of the ecr exponential collocation methods.
 #![deny(missing_docs)]
 
+pub mod baselines;
 pub mod error;
 pub mod integrate;
 pub mod operator;

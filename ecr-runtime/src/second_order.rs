@@ -351,11 +351,7 @@ impl<S: SecondOrderSystem, K: Kernel> TcStepper<S, K> {
     /// # Errors
     /// [`Error::InvalidParameter`] for bad settings, [`Error::InvalidStepSize`] for h.
     pub fn from_kernel(kernel: K, system: S, h: f64, settings: SolverSettings) -> Result<Self> {
-        if settings.tolerance.is_nan() || settings.tolerance < 0.0 || settings.max_sweeps == 0 {
-            return Err(Error::InvalidParameter(format!(
-                "solver settings need tolerance >= 0 and max_sweeps >= 1 (got {settings:?})"
-            )));
-        }
+        settings.validate()?;
         let (r, s, d) = (kernel.r(), kernel.s(), system.omega().dim());
         let (bank, coef) = Self::build(&system, &kernel, h)?;
         Ok(TcStepper {

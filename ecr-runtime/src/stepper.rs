@@ -58,6 +58,19 @@ impl Default for SolverSettings {
 }
 
 impl SolverSettings {
+    /// Checks tolerance ≥ 0 (not NaN) and max_sweeps ≥ 1.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] otherwise.
+    pub fn validate(&self) -> Result<()> {
+        if self.tolerance.is_nan() || self.tolerance < 0.0 || self.max_sweeps == 0 {
+            return Err(Error::InvalidParameter(format!(
+                "solver settings need tolerance >= 0 and max_sweeps >= 1 (got {self:?})"
+            )));
+        }
+        Ok(())
+    }
+
     /// The paper's setting (§9): tolerance 1e−16, at most 5 sweeps, accepted at the limit.
     pub fn paper() -> Self {
         SolverSettings {
@@ -113,6 +126,19 @@ impl RuntimeKernel {
     /// [`Error::InvalidParameter`] for r, s out of range.
     pub fn new(r: usize, s: usize) -> Result<Self> {
         coefficients(r, s).map(RuntimeKernel)
+    }
+
+    /// The kernel with r moments on an s-point quadrature of the given kind (Gauss–Lobatto:
+    /// the HBVM baselines).
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] for r, s out of range.
+    pub fn with_quadrature(
+        kind: crate::tables::QuadratureKind,
+        r: usize,
+        s: usize,
+    ) -> Result<Self> {
+        crate::tables::coefficients_with(kind, r, s).map(RuntimeKernel)
     }
 
     /// The coefficients.
@@ -324,12 +350,7 @@ impl<K: FixedKernel, S: System, B: Buffers> Stepper<K, S, B> {
 }
 
 fn check_settings(settings: &SolverSettings) -> Result<()> {
-    if settings.tolerance.is_nan() || settings.tolerance < 0.0 || settings.max_sweeps == 0 {
-        return Err(Error::InvalidParameter(format!(
-            "solver settings need tolerance >= 0 and max_sweeps >= 1 (got {settings:?})"
-        )));
-    }
-    Ok(())
+    settings.validate()
 }
 
 impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {

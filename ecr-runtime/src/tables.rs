@@ -6,6 +6,7 @@
 include!(concat!(env!("OUT_DIR"), "/tables.rs"));
 
 use crate::{Error, Result};
+pub use ecr_codegen::QuadratureKind;
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex, OnceLock};
 
@@ -44,17 +45,34 @@ pub fn builtin(r: usize, s: usize) -> Option<Coefficients> {
 /// # Errors
 /// [`Error::InvalidParameter`] unless 1 ≤ r ≤ `ecr_codegen::MAX_R` and r ≤ s ≤ `ecr_codegen::MAX_S`.
 pub fn coefficients(r: usize, s: usize) -> Result<Arc<Coefficients>> {
+    coefficients_with(QuadratureKind::GaussLegendre, r, s)
+}
+
+/// As [`coefficients`] for a choice of quadrature (Gauss–Lobatto tables are never built in:
+/// they serve the HBVM baselines and are generated once, then cached).
+///
+/// # Errors
+/// [`Error::InvalidParameter`] for r, s out of range (Gauss–Lobatto: also s ≥ 2).
+pub fn coefficients_with(kind: QuadratureKind, r: usize, s: usize) -> Result<Arc<Coefficients>> {
     ecr_codegen::table::check_rs(r, s).map_err(|e| Error::InvalidParameter(e.to_string()))?;
-    type Cache = Mutex<HashMap<(usize, usize), Arc<Coefficients>>>;
+    type Cache = Mutex<HashMap<(QuadratureKind, usize, usize), Arc<Coefficients>>>;
     static CACHE: OnceLock<Cache> = OnceLock::new();
     let cache = CACHE.get_or_init(Default::default);
-    if let Some(c) = cache.lock().unwrap_or_else(|e| e.into_inner()).get(&(r, s)) {
+    if let Some(c) = cache
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .get(&(kind, r, s))
+    {
         return Ok(Arc::clone(c));
     }
-    let c = match builtin(r, s) {
+    let built_in = match kind {
+        QuadratureKind::GaussLegendre => builtin(r, s),
+        QuadratureKind::GaussLobatto => None,
+    };
+    let c = match built_in {
         Some(c) => c,
         None => {
-            let t = ecr_codegen::MethodTable::generate(ecr_codegen::Family::Ec, r, s)
+            let t = ecr_codegen::MethodTable::generate_with(ecr_codegen::Family::Ec, r, s, kind)
                 .map_err(|e| Error::InvalidParameter(e.to_string()))?;
             Coefficients {
                 r,
@@ -69,7 +87,7 @@ pub fn coefficients(r: usize, s: usize) -> Result<Arc<Coefficients>> {
     cache
         .lock()
         .unwrap_or_else(|e| e.into_inner())
-        .insert((r, s), Arc::clone(&c));
+        .insert((kind, r, s), Arc::clone(&c));
     Ok(c)
 }
 

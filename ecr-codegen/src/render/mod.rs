@@ -21,5 +21,14 @@ pub fn float_literal(x: f64) -> String {
 
 /// Description of how the nodes were obtained, for provenance comments.
 pub(crate) fn node_provenance(t: &crate::MethodTable) -> String {
-    format!("roots of P̃_{}(x) = {} in (0, 1)", t.s, t.node_polynomial)
+    match t.quadrature {
+        crate::QuadratureKind::GaussLegendre => {
+            format!("roots of P̃_{}(x) = {} in (0, 1)", t.s, t.node_polynomial)
+        }
+        crate::QuadratureKind::GaussLobatto => format!(
+            "Gauss–Lobatto: 0, 1 and the roots of P̃'_{}(x) = {} in (0, 1)",
+            t.s - 1,
+            t.node_polynomial
+        ),
+    }
 }

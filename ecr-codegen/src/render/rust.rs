@@ -65,7 +65,14 @@ impl fmt::Display for RustSource<'_> {
         let weights = lab("b", &t.weights);
         write_array(
             f,
-            &format!("Weights bᵢ = 1 / (cᵢ (1 − cᵢ) P̃_{}'(cᵢ)²).", t.s),
+            &match t.quadrature {
+                crate::QuadratureKind::GaussLegendre => {
+                    format!("Weights bᵢ = 1 / (cᵢ (1 − cᵢ) P̃_{}'(cᵢ)²).", t.s)
+                }
+                crate::QuadratureKind::GaussLobatto => {
+                    format!("Weights bᵢ = 1 / (s (s − 1) P̃_{}(cᵢ)²).", t.s - 1)
+                }
+            },
             "WEIGHTS",
             &weights,
         )?;
