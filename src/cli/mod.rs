@@ -1,5 +1,6 @@
 //! Command-line interface.
 
+mod reproduce;
 mod run;
 mod tables;
 
@@ -23,6 +24,12 @@ enum Command {
     /// Bad input and runtime failures (such as stage equations that do not converge) print one
     /// line starting with 'error: ' on stderr and exit with status 2.
     Run(run::RunArgs),
+    /// Reproduce the paper's numerical experiments (§9): figures (PNG, SVG), CSV data and
+    /// report.md.
+    ///
+    /// An unusable --out directory prints one line starting with 'error: ' on stderr and exits
+    /// with status 2.
+    Reproduce(reproduce::ReproduceArgs),
 }
 
 /// A failure the user can fix: printed as one line, exit status 2.
@@ -66,6 +73,7 @@ where
     match cli.command {
         Command::Tables(args) => tables::run(&args, out),
         Command::Run(args) => run::run(&args, out),
+        Command::Reproduce(args) => reproduce::run(&args, out),
     }
 }
 

@@ -1,0 +1,129 @@
+//! `ecr reproduce`: the numerical experiments of the paper's §9 — global errors, energy
+//! (Hamiltonian) errors and the Lyapunov function of Problems 1–3 for every registered method —
+//! written as PNG and SVG figures, CSV data and a Markdown report.
+//!
+//! Methods are registered in [`methods::methods`].
+
+mod experiments;
+mod methods;
+mod plots;
+mod report;
+
+use super::UsageError;
+use clap::Args;
+use experiments::{Config, Results};
+use std::fs;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Arguments of `ecr reproduce`.
+#[derive(Args, Debug)]
+#[command(
+    after_help = "Writes p1-1, p1-2, p2-1, p2-2, p3 (.png and .svg), one CSV per sub-panel, \
+                  summary.csv and report.md into --out. An unusable --out prints one line \
+                  starting with 'error: ' on stderr and exits with status 2."
+)]
+pub struct ReproduceArgs {
+    /// Shrink the intervals (about T/100) so that everything runs in seconds.
+    #[arg(long)]
+    quick: bool,
+    /// Output directory (created if missing).
+    #[arg(long, default_value = "out/reproduce")]
+    out: PathBuf,
+}
+
+/// Creates `dir` and checks that a file can be written in it.
+fn prepare_dir(dir: &Path) -> Result<(), UsageError> {
+    let shown = dir.display();
+    fs::create_dir_all(dir)
+        .map_err(|e| UsageError(format!("cannot create output directory '{shown}': {e}")))?;
+    let probe = dir.join(".ecr-reproduce-write-test");
+    fs::write(&probe, b"")
+        .and_then(|()| fs::remove_file(&probe))
+        .map_err(|e| UsageError(format!("cannot write in output directory '{shown}': {e}")))
+}
+
+/// A CSV table: header and rows of cells.
+pub struct Csv {
+    pub header: Vec<&'static str>,
+    pub rows: Vec<Vec<String>>,
+}
+
+impl Csv {
+    fn render(&self) -> String {
+        let mut s = self.header.join(",");
+        s.push('\n');
+        for row in &self.rows {
+            s.push_str(&row.join(","));
+            s.push('\n');
+        }
+        s
+    }
+}
+
+/// Formats a number for CSV: shortest round-trip representation.
+pub fn num(x: f64) -> String {
+    format!("{x:e}")
+}
+
+fn write_file(dir: &Path, name: &str, bytes: &[u8]) -> Result<(), UsageError> {
+    let path = dir.join(name);
+    fs::write(&path, bytes)
+        .map_err(|e| UsageError(format!("cannot write '{}': {e}", path.display())))
+}
+
+/// Writes every output file; returns their names.
+fn write_outputs(
+    dir: &Path,
+    config: &Config,
+    results: &Results,
+    methods: &[methods::Method],
+    seconds: f64,
+) -> Result<Vec<String>, UsageError> {
+    let mut names = Vec::new();
+    for (name, csv) in report::csv_tables(results) {
+        write_file(dir, &name, csv.render().as_bytes())?;
+        names.push(name);
+    }
+    for figure in plots::figures(results) {
+        for (ext, result) in [
+            (
+                "png",
+                plots::write_png(&figure, &dir.join(format!("{}.png", figure.id))),
+            ),
+            (
+                "svg",
+                plots::write_svg(&figure, &dir.join(format!("{}.svg", figure.id))),
+            ),
+        ] {
+            result.map_err(|e| UsageError(format!("cannot draw {}.{ext}: {e}", figure.id)))?;
+            names.push(format!("{}.{ext}", figure.id));
+        }
+    }
+    let text = report::markdown(config, results, methods, seconds);
+    write_file(dir, "report.md", text.as_bytes())?;
+    names.push("report.md".to_string());
+    Ok(names)
+}
+
+/// Runs `ecr reproduce`.
+pub fn run(args: &ReproduceArgs, out: &mut dyn Write) -> Result<(), UsageError> {
+    prepare_dir(&args.out)?;
+    let config = Config::new(args.quick);
+    let methods = methods::methods();
+    let start = Instant::now();
+    let results = experiments::run_all(&config, &methods).map_err(UsageError)?;
+    let seconds = start.elapsed().as_secs_f64();
+    let names = write_outputs(&args.out, &config, &results, &methods, seconds)?;
+    writeln!(
+        out,
+        "ecr reproduce{}: {} methods, computed in {seconds:.1} s; wrote {} files to {}:\n  {}",
+        if args.quick { " --quick" } else { "" },
+        methods.len(),
+        names.len(),
+        args.out.display(),
+        names.join(" ")
+    )
+    .map_err(|e| UsageError(format!("cannot write output: {e}")))
+}

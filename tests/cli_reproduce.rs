@@ -1,0 +1,195 @@
+//! `ecr reproduce --quick`: every figure (PNG, SVG), CSV and the report are written, the CSVs
+//! parse with finite numbers, the report covers the three problems; an unusable --out is a
+//! one-line error with exit status 2.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn ecr(args: &[&str]) -> (i32, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_ecr"))
+        .args(args)
+        .output()
+        .expect("run ecr");
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8(out.stdout).unwrap(),
+        String::from_utf8(out.stderr).unwrap(),
+    )
+}
+
+/// A fresh directory under the system temp dir, removed on drop.
+struct TempDir(PathBuf);
+
+impl TempDir {
+    fn new(tag: &str) -> Self {
+        let nanos = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_nanos());
+        let dir = std::env::temp_dir().join(format!(
+            "ecr-reproduce-{tag}-{}-{nanos}",
+            std::process::id()
+        ));
+        TempDir(dir)
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+const FIGURES: [&str; 5] = ["p1-1", "p1-2", "p2-1", "p2-2", "p3"];
+const ERROR_CSVS: [&str; 6] = ["p1-1a", "p1-1b", "p1-1c", "p2-1a", "p2-2a", "p3a"];
+const ENERGY_CSVS: [&str; 5] = ["p1-2a", "p1-2b", "p1-2c", "p2-1b", "p3b"];
+
+fn non_empty(path: &Path) -> Vec<u8> {
+    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    assert!(!bytes.is_empty(), "{} is empty", path.display());
+    bytes
+}
+
+/// Parses a CSV (no quoting is used): checks the header, a constant number of columns, at
+/// least one row, and that every numeric cell is finite. Returns (header, rows).
+fn check_csv(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
+    let text = String::from_utf8(non_empty(path)).expect("UTF-8 CSV");
+    let mut lines = text.lines();
+    let header: Vec<String> = lines
+        .next()
+        .expect("header")
+        .split(',')
+        .map(str::to_string)
+        .collect();
+    let rows: Vec<Vec<String>> = lines
+        .map(|l| l.split(',').map(str::to_string).collect())
+        .collect();
+    assert!(!rows.is_empty(), "{}: no rows", path.display());
+    let mut numbers = 0;
+    for row in &rows {
+        assert_eq!(row.len(), header.len(), "{}: row {row:?}", path.display());
+        for (cell, col) in row.iter().zip(&header) {
+            if col == "method" || col == "panel" || col == "quantity" {
+                assert!(!cell.is_empty());
+                continue;
+            }
+            let x: f64 = cell
+                .parse()
+                .unwrap_or_else(|e| panic!("{}: {col} = {cell:?}: {e}", path.display()));
+            assert!(x.is_finite(), "{}: {col} = {cell}", path.display());
+            numbers += 1;
+        }
+    }
+    assert!(numbers > 0);
+    (header, rows)
+}
+
+fn column(header: &[String], name: &str) -> usize {
+    header
+        .iter()
+        .position(|h| h == name)
+        .unwrap_or_else(|| panic!("no column {name} in {header:?}"))
+}
+
+#[test]
+fn quick_reproduction_writes_everything() {
+    let dir = TempDir::new("quick");
+    let out = dir.0.join("nested").join("out");
+    let (code, stdout, stderr) = ecr(&["reproduce", "--quick", "--out", out.to_str().unwrap()]);
+    assert_eq!(code, 0, "stderr: {stderr}");
+    // Progress bars are hidden when stderr is not a terminal.
+    assert!(stderr.is_empty(), "unexpected stderr: {stderr}");
+    assert!(stdout.contains("report.md"), "{stdout}");
+
+    for fig in FIGURES {
+        let png = non_empty(&out.join(format!("{fig}.png")));
+        assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n", "{fig}.png is not a PNG");
+        let svg = String::from_utf8(non_empty(&out.join(format!("{fig}.svg")))).unwrap();
+        assert!(svg.contains("<svg") && svg.contains("</svg>"), "{fig}.svg");
+        assert!(
+            svg.contains("<polyline") || svg.contains("<path"),
+            "{fig}.svg has no curve"
+        );
+    }
+
+    for id in ERROR_CSVS {
+        let (header, rows) = check_csv(&out.join(format!("{id}.csv")));
+        let err = column(&header, "global_error");
+        let method = column(&header, "method");
+        assert!(
+            rows.iter().any(|r| r[method] == "EC2P"),
+            "{id}: no EC2P rows"
+        );
+        for r in &rows {
+            let e: f64 = r[err].parse().unwrap();
+            // EC2P is accurate at every step size of the study; a baseline may legitimately
+            // lose the phase at the coarsest h (RKEPC2 at hω = 1: error O(1)).
+            if r[method] == "EC2P" {
+                assert!((0.0..1.0).contains(&e), "{id}: EC2P global error {e}");
+            } else {
+                assert!(e.is_finite() && e >= 0.0, "{id}: {} global error {e}", r[method]);
+            }
+        }
+        // Four step sizes per method.
+        let ec2p = rows.iter().filter(|r| r[method] == "EC2P").count();
+        assert_eq!(ec2p, 4, "{id}");
+    }
+    for id in ENERGY_CSVS {
+        let (header, rows) = check_csv(&out.join(format!("{id}.csv")));
+        let err = column(&header, "energy_error");
+        for r in &rows {
+            let e: f64 = r[err].parse().unwrap();
+            assert!((0.0..1e-2).contains(&e), "{id}: energy error {e}");
+        }
+    }
+    let (header, rows) = check_csv(&out.join("p2-2b.csv"));
+    let method = column(&header, "method");
+    assert!(rows.iter().any(|r| r[method] == "EC2P-reference"));
+    assert!(rows.iter().any(|r| r[method] == "EC2P"));
+    check_csv(&out.join("summary.csv"));
+
+    let report = String::from_utf8(non_empty(&out.join("report.md"))).unwrap();
+    for needle in [
+        "Problem 1",
+        "Duffing",
+        "Problem 2",
+        "wind",
+        "Problem 3",
+        "NLS",
+        "observed order",
+        "Lyapunov",
+        "EC2P",
+        "QUICK",
+    ] {
+        assert!(report.contains(needle), "report.md lacks {needle:?}");
+    }
+    for fig in FIGURES.iter().chain(&ERROR_CSVS).chain(&ENERGY_CSVS) {
+        assert!(report.contains(fig), "report.md does not mention {fig}");
+    }
+}
+
+#[test]
+fn unusable_out_is_a_one_line_error() {
+    let dir = TempDir::new("bad");
+    std::fs::create_dir_all(&dir.0).unwrap();
+    // A regular file where the output directory should be (or below it).
+    let file = dir.0.join("not-a-dir");
+    std::fs::write(&file, b"x").unwrap();
+    for out in [file.clone(), file.join("sub")] {
+        let (code, stdout, stderr) = ecr(&["reproduce", "--quick", "--out", out.to_str().unwrap()]);
+        assert_eq!(code, 2, "stdout: {stdout} stderr: {stderr}");
+        assert!(stdout.is_empty());
+        assert!(stderr.starts_with("error: "), "{stderr}");
+        assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
+        assert!(stderr.contains("not-a-dir"), "{stderr}");
+    }
+}
+
+#[test]
+fn help_lists_reproduce() {
+    let (code, stdout, _) = ecr(&["--help"]);
+    assert_eq!(code, 0);
+    assert!(stdout.contains("reproduce"));
+    let (code, stdout, _) = ecr(&["reproduce", "--help"]);
+    assert_eq!(code, 0);
+    assert!(stdout.contains("--quick") && stdout.contains("--out"));
+}
