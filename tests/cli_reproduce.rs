@@ -126,7 +126,11 @@ fn quick_reproduction_writes_everything() {
             if r[method] == "EC2P" {
                 assert!((0.0..1.0).contains(&e), "{id}: EC2P global error {e}");
             } else {
-                assert!(e.is_finite() && e >= 0.0, "{id}: {} global error {e}", r[method]);
+                assert!(
+                    e.is_finite() && e >= 0.0,
+                    "{id}: {} global error {e}",
+                    r[method]
+                );
             }
         }
         // Four step sizes per method.

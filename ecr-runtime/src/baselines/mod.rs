@@ -4,3 +4,4 @@
 pub mod collocation;
 pub mod dop853;
 pub mod exponential;
+pub mod krylov;
