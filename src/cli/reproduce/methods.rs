@@ -139,6 +139,13 @@ pub fn methods() -> Vec<Method> {
             build: |p, h| on_system!(p, sys => boxed(rkepc2(sys, h, SolverSettings::paper()))),
         },
         Method {
+            name: "RKEPC2-conv",
+            about: "RKEPC2 with its stage equations iterated to convergence (tolerance 1e-15 \
+                    or round-off stagnation, at most 100 sweeps): exactly energy-preserving \
+                    for polynomial H",
+            build: |p, h| on_system!(p, sys => boxed(rkepc2(sys, h, SolverSettings::default()))),
+        },
+        Method {
             name: "EEI3s4",
             about: "exprb43 (Hochbruck–Ostermann–Schweitzer 2009), explicit, 3 stages, order 4, \
                     Jacobian J = A + g'(y_n) refreshed every step (g' by central differences; \
