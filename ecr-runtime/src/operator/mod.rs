@@ -37,11 +37,15 @@
 //! ```
 
 mod circulant;
+mod circulant2d;
 mod dense;
 mod simple;
 mod skew;
 
 pub use circulant::{Circulant, CirculantBank, CirculantWorkspace, FourierBasis};
+pub use circulant2d::{
+    Circulant2d, Circulant2dBank, Circulant2dWorkspace, Fourier2dBasis, Fourier2dScratch,
+};
 pub use dense::{
     Dense, DenseBank, DenseStatic, DenseStaticBank, EigenBasis, Symmetric, SymmetricBank,
     SymmetricWorkspace,
