@@ -14,7 +14,7 @@
 //! * [`Wind`] — Problem 2, the averaged system in wind-induced oscillation, conservative
 //!   ([`Wind::conservative`]) and dissipative ([`Wind::dissipative`]).
 //! * [`Nls`] — Problem 3, the cubic nonlinear Schrödinger equation, semi-discretised by the
-//!   Fourier pseudospectral method.
+//!   Fourier pseudospectral method; [`Nls2d`] is its 2D analogue (for scaling studies).
 //!
 //! Each type offers the same inherent methods, and implements [`TestProblem`] for code that runs
 //! one harness over all of them. The nonlinearity, the gradient and the energies work on slices
@@ -36,12 +36,14 @@ use nalgebra::DMatrix;
 mod duffing;
 mod fpu;
 mod nls;
+mod nls2d;
 mod systems;
 mod wind;
 
 pub use duffing::Duffing;
 pub use fpu::Fpu;
 pub use nls::Nls;
+pub use nls2d::{Nls2d, Nls2dSystem};
 pub use systems::{DuffingSystem, NlsDenseSystem, NlsSystem, ProblemSystem, WindSystem};
 pub use wind::Wind;
 
