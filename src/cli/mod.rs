@@ -1,5 +1,6 @@
 //! Command-line interface.
 
+mod bench;
 mod reproduce;
 mod run;
 mod tables;
@@ -30,6 +31,12 @@ enum Command {
     /// An unusable --out directory prints one line starting with 'error: ' on stderr and exits
     /// with status 2.
     Reproduce(reproduce::ReproduceArgs),
+    /// Work–precision benchmark: CPU time (wall clock, single thread) against global and
+    /// energy error for ECrP, TCrP and the baselines; CSV, figures (PNG, SVG) and summary.md.
+    ///
+    /// An unusable --out directory prints one line starting with 'error: ' on stderr and exits
+    /// with status 2.
+    Bench(bench::BenchArgs),
 }
 
 /// A failure the user can fix: printed as one line, exit status 2.
@@ -74,6 +81,7 @@ where
         Command::Tables(args) => tables::run(&args, out),
         Command::Run(args) => run::run(&args, out),
         Command::Reproduce(args) => reproduce::run(&args, out),
+        Command::Bench(args) => bench::run(&args, out),
     }
 }
 

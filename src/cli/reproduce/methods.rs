@@ -80,6 +80,7 @@ macro_rules! on_system {
         }
     };
 }
+pub(crate) use on_system;
 
 /// A boxed integrator of any type.
 pub type BoxedIntegrator = Box<dyn Integrator>;

@@ -5,8 +5,8 @@
 //! Methods are registered in [`methods::methods`].
 
 mod experiments;
-mod methods;
-mod plots;
+pub(crate) mod methods;
+pub(crate) mod plots;
 mod report;
 
 use super::UsageError;
@@ -34,7 +34,7 @@ pub struct ReproduceArgs {
 }
 
 /// Creates `dir` and checks that a file can be written in it.
-fn prepare_dir(dir: &Path) -> Result<(), UsageError> {
+pub(crate) fn prepare_dir(dir: &Path) -> Result<(), UsageError> {
     let shown = dir.display();
     fs::create_dir_all(dir)
         .map_err(|e| UsageError(format!("cannot create output directory '{shown}': {e}")))?;
@@ -51,7 +51,7 @@ pub struct Csv {
 }
 
 impl Csv {
-    fn render(&self) -> String {
+    pub(crate) fn render(&self) -> String {
         let mut s = self.header.join(",");
         s.push('\n');
         for row in &self.rows {
@@ -67,7 +67,7 @@ pub fn num(x: f64) -> String {
     format!("{x:e}")
 }
 
-fn write_file(dir: &Path, name: &str, bytes: &[u8]) -> Result<(), UsageError> {
+pub(crate) fn write_file(dir: &Path, name: &str, bytes: &[u8]) -> Result<(), UsageError> {
     let path = dir.join(name);
     fs::write(&path, bytes)
         .map_err(|e| UsageError(format!("cannot write '{}': {e}", path.display())))

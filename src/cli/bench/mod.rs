@@ -1,0 +1,302 @@
+//! `ecr bench`: work–precision data (CPU time against global error and against energy error)
+//! for ECrP / TCrP and the baselines on Duffing (ω = 20), the conservative wind problem and the
+//! NLS; the scaling of the step cost with the dimension (1D and 2D NLS, FFT operator); CSV,
+//! figures (PNG, SVG) and `summary.md`.
+//!
+//! Reuses the `ecr reproduce` harness: its problem type, method registry, `Dyn` wrapper,
+//! output-directory and CSV helpers and plotting code.
+
+mod scaling;
+mod summary;
+mod sweep;
+
+use super::UsageError;
+use super::reproduce::plots::{Curve, Figure, Panel, write_png, write_svg};
+use super::reproduce::{Csv, num, prepare_dir, write_file};
+use clap::{Args, ValueEnum};
+use plotters::prelude::SeriesLabelPosition;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+use sweep::{Config, Point, ProblemRun};
+
+/// Arguments of `ecr bench`.
+#[derive(Args, Debug)]
+#[command(
+    after_help = "Writes <problem>.csv, <problem>-error and <problem>-energy (.png, .svg) for \
+                  duffing, wind and nls, scaling.csv and scaling (.png, .svg), and summary.md \
+                  into --out. CPU time is the wall-clock \
+                  time of a single-threaded run. An unusable --out prints one line starting \
+                  with 'error: ' on stderr and exits with status 2."
+)]
+pub struct BenchArgs {
+    /// Tiny intervals and two points per method, one timed run each (seconds in total).
+    #[arg(long)]
+    quick: bool,
+    /// Output directory (created if missing).
+    #[arg(long, default_value = "out/bench")]
+    out: PathBuf,
+    /// Run only one part of the benchmark.
+    #[arg(long, value_enum)]
+    only: Option<Part>,
+}
+
+/// The parts of `ecr bench`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Part {
+    /// Work–precision sweeps on Duffing, wind and NLS, and the equal-CPU energy comparison.
+    WorkPrecision,
+    /// Step cost against dimension: 1D NLS N = 2^7..2^16, 2D NLS up to 512 × 512.
+    Scaling,
+}
+
+fn opt(x: Option<usize>) -> String {
+    x.map_or_else(|| "-".to_string(), |v| v.to_string())
+}
+
+fn csv(run: &ProblemRun) -> Csv {
+    Csv {
+        header: vec![
+            "method",
+            "r",
+            "s",
+            "h",
+            "tol",
+            "cpu_seconds",
+            "global_error",
+            "max_energy_error",
+        ],
+        rows: run
+            .points
+            .iter()
+            .map(|p| {
+                vec![
+                    p.series.clone(),
+                    opt(p.r),
+                    opt(p.s),
+                    num(p.h),
+                    p.tol.map_or_else(|| "-".to_string(), num),
+                    num(p.cpu),
+                    num(p.error),
+                    num(p.energy),
+                ]
+            })
+            .collect(),
+    }
+}
+
+fn log10(x: f64) -> Option<f64> {
+    (x > 0.0 && x.is_finite()).then(|| x.log10())
+}
+
+/// One figure per quantity: one panel per group of series, DOP853 drawn in every panel.
+fn figure(run: &ProblemRun, energy: bool) -> Figure {
+    let mut groups: Vec<&str> = Vec::new();
+    for (_, g) in &run.series {
+        if !groups.contains(g) {
+            groups.push(g);
+        }
+    }
+    let value = |p: &Point| if energy { p.energy } else { p.error };
+    let panels = groups
+        .iter()
+        .map(|&g| {
+            let curves = run
+                .series
+                .iter()
+                .filter(|(l, sg)| *sg == g || l == "DOP853")
+                .map(|(label, _)| Curve {
+                    label: label.clone(),
+                    points: run
+                        .points
+                        .iter()
+                        .filter(|p| &p.series == label)
+                        .filter_map(|p| Some((log10(p.cpu)?, log10(value(p))?)))
+                        .collect(),
+                })
+                .collect();
+            Panel {
+                title: g.to_string(),
+                x_label: "log10(CPU seconds)".to_string(),
+                y_label: if energy {
+                    "log10(max relative energy error)".to_string()
+                } else {
+                    "log10(global error)".to_string()
+                },
+                curves,
+                markers: true,
+                legend: SeriesLabelPosition::UpperRight,
+            }
+        })
+        .collect();
+    Figure {
+        id: format!("{}-{}", run.id, if energy { "energy" } else { "error" }),
+        caption: format!(
+            "{}: {} against CPU time (wall clock, single thread)",
+            run.title,
+            if energy {
+                "max energy error"
+            } else {
+                "global error"
+            }
+        ),
+        panels,
+    }
+}
+
+fn scaling_csv(s: &scaling::Scaling) -> Csv {
+    Csv {
+        header: vec![
+            "case",
+            "grid",
+            "d",
+            "steps",
+            "seconds_per_step",
+            "sweeps_per_step",
+            "energy_error",
+            "setup_seconds",
+        ],
+        rows: s
+            .points
+            .iter()
+            .map(|p| {
+                vec![
+                    p.case.to_string(),
+                    p.grid.clone(),
+                    p.d.to_string(),
+                    p.steps.to_string(),
+                    num(p.seconds_per_step),
+                    num(p.sweeps_per_step),
+                    num(p.energy_error),
+                    num(p.setup_seconds),
+                ]
+            })
+            .collect(),
+    }
+}
+
+/// Seconds per step against d (log–log), 1D and 2D, with a d log d line through the largest
+/// 1D point for comparison.
+fn scaling_figure(s: &scaling::Scaling) -> Figure {
+    let mut curves: Vec<Curve> = ["1D", "2D"]
+        .iter()
+        .map(|case| Curve {
+            label: format!("EC{}P, {case} NLS (FFT)", scaling::R),
+            points: s
+                .points
+                .iter()
+                .filter(|p| p.case == *case)
+                .filter_map(|p| Some(((p.d as f64).log10(), log10(p.seconds_per_step)?)))
+                .collect(),
+        })
+        .collect();
+    if let Some(last) = s.points.iter().rfind(|p| p.case == "1D") {
+        let (d1, t1) = (last.d as f64, last.seconds_per_step);
+        let dmin = s.points.iter().map(|p| p.d).min().unwrap_or(last.d) as f64;
+        let dmax = s.points.iter().map(|p| p.d).max().unwrap_or(last.d) as f64;
+        let line = |d: f64| t1 * d * d.log2() / (d1 * d1.log2());
+        curves.push(Curve {
+            label: "∝ d log d".to_string(),
+            points: [dmin, dmax]
+                .iter()
+                .filter_map(|&d| Some((d.log10(), log10(line(d))?)))
+                .collect(),
+        });
+    }
+    Figure {
+        id: "scaling".to_string(),
+        caption: format!(
+            "Cost of one EC{}P step (h = 1/200, converged sweeps) against the dimension d",
+            scaling::R
+        ),
+        panels: vec![Panel {
+            title: "NLS with the circulant (FFT) operator".to_string(),
+            x_label: "log10(d)".to_string(),
+            y_label: "log10(seconds per step)".to_string(),
+            curves,
+            markers: true,
+            legend: SeriesLabelPosition::UpperLeft,
+        }],
+    }
+}
+
+fn draw(dir: &Path, fig: &Figure, names: &mut Vec<String>) -> Result<(), UsageError> {
+    for ext in ["png", "svg"] {
+        let path = dir.join(format!("{}.{ext}", fig.id));
+        let drawn = if ext == "png" {
+            write_png(fig, &path)
+        } else {
+            write_svg(fig, &path)
+        };
+        drawn.map_err(|e| UsageError(format!("cannot draw {}.{ext}: {e}", fig.id)))?;
+        names.push(format!("{}.{ext}", fig.id));
+    }
+    Ok(())
+}
+
+fn write_outputs(
+    dir: &Path,
+    c: &Config,
+    results: Option<&sweep::Results>,
+    scaling: Option<&scaling::Scaling>,
+    seconds: f64,
+) -> Result<Vec<String>, UsageError> {
+    let mut names = Vec::new();
+    for run in results.iter().flat_map(|r| &r.problems) {
+        let name = format!("{}.csv", run.id);
+        write_file(dir, &name, csv(run).render().as_bytes())?;
+        names.push(name);
+        for energy in [false, true] {
+            draw(dir, &figure(run, energy), &mut names)?;
+        }
+    }
+    if let Some(s) = scaling {
+        write_file(dir, "scaling.csv", scaling_csv(s).render().as_bytes())?;
+        names.push("scaling.csv".to_string());
+        draw(dir, &scaling_figure(s), &mut names)?;
+    }
+    write_file(
+        dir,
+        "summary.md",
+        summary::markdown(c, results, scaling, seconds).as_bytes(),
+    )?;
+    names.push("summary.md".to_string());
+    Ok(names)
+}
+
+/// Runs `ecr bench`.
+pub fn run(args: &BenchArgs, out: &mut dyn Write) -> Result<(), UsageError> {
+    prepare_dir(&args.out)?;
+    let c = Config::new(args.quick);
+    let start = Instant::now();
+    let results = match args.only {
+        Some(Part::Scaling) => None,
+        _ => Some(sweep::run_all(&c).map_err(UsageError)?),
+    };
+    let bar = indicatif::ProgressBar::new_spinner();
+    let scaling = match args.only {
+        Some(Part::WorkPrecision) => None,
+        _ => Some(
+            scaling::run(args.quick, &mut |m| bar.set_message(m.to_string()))
+                .map_err(UsageError)?,
+        ),
+    };
+    bar.finish_and_clear();
+    let seconds = start.elapsed().as_secs_f64();
+    let names = write_outputs(&args.out, &c, results.as_ref(), scaling.as_ref(), seconds)?;
+    let points = results
+        .iter()
+        .flat_map(|r| &r.problems)
+        .map(|p| p.points.len())
+        .sum::<usize>()
+        + scaling.as_ref().map_or(0, |s| s.points.len());
+    writeln!(
+        out,
+        "ecr bench{}: {points} points, computed in {seconds:.1} s; wrote {} files to {}:\n  {}",
+        if args.quick { " --quick" } else { "" },
+        names.len(),
+        args.out.display(),
+        names.join(" ")
+    )
+    .map_err(|e| UsageError(format!("cannot write output: {e}")))
+}

@@ -1,0 +1,240 @@
+//! `ecr bench --quick`: one CSV per problem with finite numbers, PNG and SVG figures,
+//! summary.md covering every problem and target; an unusable --out is a one-line error with
+//! exit status 2.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn ecr(args: &[&str]) -> (i32, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_ecr"))
+        .args(args)
+        .output()
+        .expect("run ecr");
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8(out.stdout).unwrap(),
+        String::from_utf8(out.stderr).unwrap(),
+    )
+}
+
+/// A fresh directory under the system temp dir, removed on drop.
+struct TempDir(PathBuf);
+
+impl TempDir {
+    fn new(tag: &str) -> Self {
+        let nanos = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_nanos());
+        TempDir(
+            std::env::temp_dir().join(format!("ecr-bench-{tag}-{}-{nanos}", std::process::id())),
+        )
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+const PROBLEMS: [&str; 3] = ["duffing", "wind", "nls"];
+const HEADER: [&str; 8] = [
+    "method",
+    "r",
+    "s",
+    "h",
+    "tol",
+    "cpu_seconds",
+    "global_error",
+    "max_energy_error",
+];
+
+fn non_empty(path: &Path) -> Vec<u8> {
+    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    assert!(!bytes.is_empty(), "{} is empty", path.display());
+    bytes
+}
+
+/// Checks the header and that every numeric cell is finite ("-": not applicable); returns the
+/// method names of the rows.
+fn check_csv(path: &Path) -> Vec<String> {
+    let text = String::from_utf8(non_empty(path)).expect("UTF-8 CSV");
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().expect("header").split(',').collect();
+    assert_eq!(header, HEADER, "{}", path.display());
+    let mut methods = Vec::new();
+    for line in lines {
+        let row: Vec<&str> = line.split(',').collect();
+        assert_eq!(row.len(), HEADER.len(), "{}: {line}", path.display());
+        assert!(!row[0].is_empty());
+        methods.push(row[0].to_string());
+        for (cell, col) in row.iter().zip(HEADER).skip(1) {
+            if *cell == "-" && matches!(col, "r" | "s" | "tol") {
+                continue;
+            }
+            let x: f64 = cell
+                .parse()
+                .unwrap_or_else(|e| panic!("{}: {col} = {cell:?}: {e}", path.display()));
+            assert!(
+                x.is_finite() && x >= 0.0,
+                "{}: {col} = {cell}",
+                path.display()
+            );
+        }
+        let cpu: f64 = row[5].parse().unwrap();
+        assert!(cpu > 0.0, "{}: cpu {cpu}", path.display());
+    }
+    assert!(!methods.is_empty(), "{}: no rows", path.display());
+    methods
+}
+
+#[test]
+fn quick_bench_writes_everything() {
+    let dir = TempDir::new("quick");
+    let out = dir.0.join("nested").join("out");
+    let (code, stdout, stderr) = ecr(&["bench", "--quick", "--out", out.to_str().unwrap()]);
+    assert_eq!(code, 0, "stderr: {stderr}");
+    assert!(stdout.contains("summary.md"), "{stdout}");
+
+    for id in PROBLEMS {
+        let methods = check_csv(&out.join(format!("{id}.csv")));
+        assert!(
+            methods.iter().any(|m| m.starts_with("EC")),
+            "{id}: no ECrP rows"
+        );
+        assert!(
+            methods.iter().any(|m| m == "DOP853"),
+            "{id}: no DOP853 rows"
+        );
+        for q in ["error", "energy"] {
+            let png = non_empty(&out.join(format!("{id}-{q}.png")));
+            assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n", "{id}-{q}.png is not a PNG");
+            let svg = String::from_utf8(non_empty(&out.join(format!("{id}-{q}.svg")))).unwrap();
+            assert!(
+                svg.contains("<svg") && svg.contains("</svg>"),
+                "{id}-{q}.svg"
+            );
+        }
+    }
+    let duffing = check_csv(&out.join("duffing.csv"));
+    for m in [
+        "TC2P", "RKEPC2", "EEI3s4", "HochOst4", "Gauss2", "AVF", "ExpAVF",
+    ] {
+        assert!(duffing.iter().any(|x| x == m), "duffing.csv lacks {m}");
+    }
+    let nls = check_csv(&out.join("nls.csv"));
+    assert!(
+        nls.iter().any(|x| x.ends_with("dense")),
+        "nls.csv lacks dense EC"
+    );
+
+    check_scaling(&out, true);
+
+    let summary = String::from_utf8(non_empty(&out.join("summary.md"))).unwrap();
+    for needle in [
+        "Duffing",
+        "wind",
+        "NLS",
+        "1e-6",
+        "1e-8",
+        "1e-10",
+        "DOP853",
+        "RKEPC2",
+        "single-threaded",
+        "(a)",
+        "(b)",
+        "(c)",
+        "Scaling",
+        "d log₂ d",
+    ] {
+        assert!(summary.contains(needle), "summary.md lacks {needle:?}");
+    }
+}
+
+/// scaling.csv: 1D rows N = 2^7.. and 2D rows, finite positive timings, d = 2N or 2n²,
+/// energy changes at round-off level; the figure in both formats.
+fn check_scaling(out: &Path, expect_2d: bool) {
+    let text = String::from_utf8(non_empty(&out.join("scaling.csv"))).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(
+        lines.next().unwrap(),
+        "case,grid,d,steps,seconds_per_step,sweeps_per_step,energy_error,setup_seconds"
+    );
+    let (mut one, mut two) = (0, 0);
+    for line in lines {
+        let row: Vec<&str> = line.split(',').collect();
+        assert_eq!(row.len(), 8, "{line}");
+        let d: usize = row[2].parse().unwrap();
+        match row[0] {
+            "1D" => {
+                one += 1;
+                assert_eq!(row[1], format!("N = {}", d / 2), "{line}");
+            }
+            "2D" => {
+                two += 1;
+                let n = ((d / 2) as f64).sqrt() as usize;
+                assert_eq!(row[1], format!("{n} × {n}"), "{line}");
+            }
+            other => panic!("unknown case {other}"),
+        }
+        for cell in &row[4..] {
+            let x: f64 = cell.parse().unwrap();
+            assert!(x.is_finite() && x >= 0.0, "{line}");
+        }
+        let sweeps: f64 = row[5].parse().unwrap();
+        assert!(sweeps >= 1.0, "{line}");
+        // A few steps of an order-4 method at h = 1/200: the energy moves by far less than 1e-6.
+        let energy: f64 = row[6].parse().unwrap();
+        assert!(energy < 1e-6, "{line}");
+    }
+    assert!(one >= 3, "too few 1D sizes: {one}");
+    assert_eq!(two > 0, expect_2d);
+    for ext in ["png", "svg"] {
+        non_empty(&out.join(format!("scaling.{ext}")));
+    }
+}
+
+#[test]
+fn only_scaling_runs_only_the_scaling_study() {
+    let dir = TempDir::new("only");
+    let (code, stdout, stderr) = ecr(&[
+        "bench",
+        "--quick",
+        "--only",
+        "scaling",
+        "--out",
+        dir.0.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "stderr: {stderr}");
+    assert!(stdout.contains("scaling.csv"), "{stdout}");
+    check_scaling(&dir.0, true);
+    for id in PROBLEMS {
+        assert!(
+            !dir.0.join(format!("{id}.csv")).exists(),
+            "{id}.csv written"
+        );
+    }
+    let summary = String::from_utf8(non_empty(&dir.0.join("summary.md"))).unwrap();
+    assert!(summary.contains("Fitted exponents"), "{summary}");
+    assert!(!summary.contains("Work–precision"), "{summary}");
+
+    let (code, stdout, stderr) = ecr(&["bench", "--only", "everything"]);
+    assert_eq!(code, 2, "stdout: {stdout} stderr: {stderr}");
+    assert!(stderr.contains("everything"), "{stderr}");
+}
+
+#[test]
+fn unusable_out_is_a_one_line_error() {
+    let dir = TempDir::new("bad");
+    std::fs::create_dir_all(&dir.0).unwrap();
+    let file = dir.0.join("not-a-dir");
+    std::fs::write(&file, b"x").unwrap();
+    for out in [file.clone(), file.join("sub")] {
+        let (code, stdout, stderr) = ecr(&["bench", "--quick", "--out", out.to_str().unwrap()]);
+        assert_eq!(code, 2, "stdout: {stdout} stderr: {stderr}");
+        assert!(stdout.is_empty());
+        assert!(stderr.starts_with("error: "), "{stderr}");
+        assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
+        assert!(stderr.contains("not-a-dir"), "{stderr}");
+    }
+}
