@@ -1,0 +1,115 @@
+//! The hot paths below a step, each alone: building a φ-bank for one step size (what a user pays
+//! once per h) and applying it (`combine`: what a stage or the update costs each sweep), for
+//! every operator kind, plus the plain application `y = Ax`. All in one run:
+//! `cargo bench --bench hot_paths`.
+//!
+//! Banks are built as ECrP builds them: r = 3 (φ₀..φ₄), nodes the 3 Gauss points and τ = 1.
+//! Dense matrices are non-normal (random entries plus a skew part of size 10 and a diagonal
+//! shift), so the dense bank runs scaling-and-squaring rather than an eigendecomposition.
+
+use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
+use ecr::runtime::operator::{
+    Circulant, Dense, DenseStatic, Diagonal, LinearOperator, PhiBank, Scalar, SkewPair, Symmetric,
+};
+use nalgebra::{DMatrix, SMatrix};
+use std::hint::black_box;
+
+const H: f64 = 0.01;
+const R: usize = 3;
+const TAUS: [f64; 4] = [0.112_701_665_379_258_3, 0.5, 0.887_298_334_620_741_7, 1.0];
+
+/// Deterministic numbers in [−1, 1).
+struct Lcg(u64);
+
+impl Lcg {
+    fn next(&mut self) -> f64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        2.0 * ((self.0 >> 11) as f64 / (1u64 << 53) as f64) - 1.0
+    }
+    fn vec(&mut self, n: usize) -> Vec<f64> {
+        (0..n).map(|_| self.next()).collect()
+    }
+}
+
+fn non_normal(d: usize, rng: &mut Lcg) -> DMatrix<f64> {
+    let b = DMatrix::from_fn(d, d, |_, _| rng.next());
+    let skew = (&b - b.transpose()) * 5.0;
+    DMatrix::from_fn(d, d, |i, j| {
+        let upper = if j > i { rng.next() } else { 0.0 };
+        skew[(i, j)] + upper - if i == j { 1.0 } else { 0.0 }
+    })
+}
+
+fn symmetric(d: usize, rng: &mut Lcg) -> DMatrix<f64> {
+    let b = DMatrix::from_fn(d, d, |_, _| rng.next());
+    -(&b * b.transpose())
+}
+
+/// A symmetric circulant kernel (the spectral second derivative's shape: c_j = c_{N−j}).
+fn symmetric_kernel(n: usize, rng: &mut Lcg) -> Vec<f64> {
+    let half = rng.vec(n / 2 + 1);
+    (0..n).map(|j| half[j.min(n - j)]).collect()
+}
+
+/// Times `phi_bank` and `combine` (all s + 1 nodes, r moments) of `op`.
+fn bank_and_combine<L: LinearOperator>(c: &mut Criterion, group: &str, param: usize, op: &L) {
+    let d = op.dim();
+    let mut g = c.benchmark_group(group);
+    g.bench_with_input(BenchmarkId::new("phi_bank", param), op, |b, op| {
+        b.iter(|| op.phi_bank(black_box(H), &TAUS, R + 1).unwrap())
+    });
+    let bank = op.phi_bank(H, &TAUS, R + 1).unwrap();
+    let mut ws = bank.workspace();
+    let mut rng = Lcg(7);
+    let (y0, moments) = (rng.vec(d), rng.vec(R * d));
+    let coef = rng.vec(R * TAUS.len());
+    let mut out = vec![0.0; d * TAUS.len()];
+    g.bench_function(BenchmarkId::new("combine", param), |b| {
+        b.iter(|| {
+            bank.combine(0..TAUS.len(), &y0, &moments, &coef, &mut out, &mut ws);
+            black_box(&out);
+        })
+    });
+    let mut y = vec![0.0; d];
+    g.bench_function(BenchmarkId::new("apply", param), |b| {
+        b.iter(|| {
+            op.apply(black_box(&y0), &mut y);
+            black_box(&y);
+        })
+    });
+    g.finish();
+}
+
+fn phi_banks(c: &mut Criterion) {
+    let mut rng = Lcg(1);
+    bank_and_combine(c, "scalar", 1024, &Scalar::new(-3.0, 1024).unwrap());
+    bank_and_combine(c, "diagonal", 1024, &Diagonal::new(rng.vec(1024)).unwrap());
+    let a2: SMatrix<f64, 2, 2> = SMatrix::from_iterator(non_normal(2, &mut rng).iter().copied());
+    bank_and_combine(c, "dense_static", 2, &DenseStatic::new(a2).unwrap());
+    for d in [2, 8, 32, 128, 512] {
+        bank_and_combine(c, "dense", d, &Dense::new(non_normal(d, &mut rng)).unwrap());
+    }
+    for d in [32, 128, 512] {
+        bank_and_combine(
+            c,
+            "symmetric",
+            d,
+            &Symmetric::new(symmetric(d, &mut rng)).unwrap(),
+        );
+    }
+    for n in [128, 1024, 16384] {
+        bank_and_combine(c, "circulant", n, &Circulant::new(rng.vec(n)).unwrap());
+        let skew = SkewPair::new(Circulant::new(symmetric_kernel(n, &mut rng)).unwrap()).unwrap();
+        bank_and_combine(c, "skew_pair_circulant", 2 * n, &skew);
+    }
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default().sample_size(20);
+    targets = phi_banks
+}
+criterion_main!(benches);
