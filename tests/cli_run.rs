@@ -84,6 +84,41 @@ fn duffing_is_accurate_and_reports_every_field() {
     assert!(v["wall_seconds"].as_f64().unwrap() >= 0.0);
 }
 
+/// --extrapolate: the same solution to the solver tolerance, fewer sweeps.
+#[test]
+fn extrapolating_predictor_saves_sweeps() {
+    let args = [
+        "--problem",
+        "duffing",
+        "--omega",
+        "20",
+        "--r",
+        "3",
+        "--h",
+        "0.05",
+        "--t-end",
+        "20",
+    ];
+    let plain = run_ok(&args);
+    let mut with: Vec<&str> = args.to_vec();
+    with.push("--extrapolate");
+    let fast = run_ok(&with);
+    check_fields(&fast);
+    assert_eq!(fast["solver"]["extrapolate"], true);
+    let sweeps = |v: &serde_json::Value| v["sweeps"].as_u64().unwrap();
+    assert!(
+        (sweeps(&fast) as f64) < 0.85 * sweeps(&plain) as f64,
+        "{} vs {}",
+        sweeps(&fast),
+        sweeps(&plain)
+    );
+    let (a, b) = (&plain["y"], &fast["y"]);
+    for i in 0..2 {
+        let d = (a[i].as_f64().unwrap() - b[i].as_f64().unwrap()).abs();
+        assert!(d <= 1e-12, "y[{i}] differs by {d:e}");
+    }
+}
+
 #[test]
 fn duffing_paper_solver_and_more_nodes() {
     let v = run_ok(&[

@@ -21,7 +21,8 @@
 
 use crate::phi::phi_trig;
 use crate::stepper::{
-    FixedKernel, Kernel, ROUNDOFF_RESIDUAL, RuntimeKernel, SolverSettings, StepReport, SweepLimit,
+    FixedKernel, Kernel, Predictor, RuntimeKernel, SolverSettings, StepReport, SweepLimit,
+    sweeps_converged,
 };
 use crate::{Error, Result};
 use nalgebra::DMatrix;
@@ -292,10 +293,16 @@ pub struct TcStepper<S: SecondOrderSystem, K: Kernel = RuntimeKernel> {
     settings: SolverSettings,
     h: f64,
     bank: TrigBank,
-    /// h τᵢ and h² τᵢ^{k+2} per node (τ = c₁..c_s, 1): (s + 1) × (1 + r).
+    /// h τᵢ and h² τᵢ^{k+2} per node (τ = c₁..c_s, 1, and 1 + c₁..1 + c_s with the
+    /// extrapolating predictor): (1 + r) per node.
     coef: Vec<f64>,
     q0m: Vec<f64>,
     p0m: Vec<f64>,
+    /// The modal start (q, p) of the last completed step, for the predictor.
+    prev_q0m: Vec<f64>,
+    prev_p0m: Vec<f64>,
+    /// The last step completed with this h and its start and moments are kept.
+    have_previous: bool,
     /// The last output (q, p) in physical coordinates, bit for bit, whose exact modal
     /// coordinates are still in q0m/p0m: continuing from it skips the round trip through a
     /// numerically orthogonal eigenbasis, which would otherwise add a systematic O(ε) per step.
@@ -353,7 +360,7 @@ impl<S: SecondOrderSystem, K: Kernel> TcStepper<S, K> {
     pub fn from_kernel(kernel: K, system: S, h: f64, settings: SolverSettings) -> Result<Self> {
         settings.validate()?;
         let (r, s, d) = (kernel.r(), kernel.s(), system.omega().dim());
-        let (bank, coef) = Self::build(&system, &kernel, h)?;
+        let (bank, coef) = Self::build(&system, &kernel, h, settings.predictor)?;
         Ok(TcStepper {
             kernel,
             system,
@@ -363,6 +370,9 @@ impl<S: SecondOrderSystem, K: Kernel> TcStepper<S, K> {
             coef,
             q0m: vec![0.0; d],
             p0m: vec![0.0; d],
+            prev_q0m: vec![0.0; d],
+            prev_p0m: vec![0.0; d],
+            have_previous: false,
             last_q: vec![0.0; d],
             last_p: vec![0.0; d],
             modal_valid: false,
@@ -375,13 +385,16 @@ impl<S: SecondOrderSystem, K: Kernel> TcStepper<S, K> {
         })
     }
 
-    fn build(system: &S, kernel: &K, h: f64) -> Result<(TrigBank, Vec<f64>)> {
+    fn build(system: &S, kernel: &K, h: f64, predictor: Predictor) -> Result<(TrigBank, Vec<f64>)> {
         if !(h.is_finite() && h > 0.0) {
             return Err(Error::InvalidStepSize(h));
         }
         let r = kernel.r();
         let mut taus = kernel.nodes().to_vec();
         taus.push(1.0);
+        if predictor == Predictor::Extrapolate {
+            taus.extend(kernel.nodes().iter().map(|c| 1.0 + c));
+        }
         let bank = TrigBank::new(system.omega(), h, &taus, r + 1)?;
         let coef = taus
             .iter()
@@ -408,22 +421,29 @@ impl<S: SecondOrderSystem, K: Kernel> TcStepper<S, K> {
     /// [`Error::InvalidStepSize`].
     pub fn set_step_size(&mut self, h: f64) -> Result<()> {
         if h != self.h {
-            let (bank, coef) = Self::build(&self.system, &self.kernel, h)?;
+            let (bank, coef) = Self::build(&self.system, &self.kernel, h, self.settings.predictor)?;
             self.bank = bank;
             self.coef = coef;
             self.h = h;
+            self.have_previous = false;
         }
         Ok(())
     }
 
     /// Positions of stage i in modal coordinates into `out`:
-    /// φᵗ₀ q₀ + hτ φᵗ₁ p₀ − Σ_k h²τ^{k+2} φᵗ_{k+2} M_k (M = Σ_j w_kj f_j, modal).
+    /// φᵗ₀ q₀ + hτ φᵗ₁ p₀ − Σ_k h²τ^{k+2} φᵗ_{k+2} M_k (M = Σ_j w_kj f_j, modal), from the
+    /// current step's start (or, for the predictor nodes i > s, the previous step's).
     fn stage_modal(&self, i: usize, out: &mut [f64]) {
         let (r, d) = (self.kernel.r(), out.len());
+        let (q0m, p0m) = if i > self.kernel.s() {
+            (&self.prev_q0m, &self.prev_p0m)
+        } else {
+            (&self.q0m, &self.p0m)
+        };
         let c = &self.coef[i * (r + 1)..(i + 1) * (r + 1)];
         let (t0, t1) = (self.bank.get(i, 0), self.bank.get(i, 1));
         for l in 0..d {
-            out[l] = t0[l] * self.q0m[l] + c[0] * t1[l] * self.p0m[l];
+            out[l] = t0[l] * q0m[l] + c[0] * t1[l] * p0m[l];
         }
         for k in 0..r {
             let tk = self.bank.get(i, k + 2);
@@ -479,20 +499,45 @@ impl<S: SecondOrderSystem, K: Kernel> TcStepper<S, K> {
         }
         let omega = self.system.omega();
         let same = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits());
-        if !(self.modal_valid && same(q, &self.last_q) && same(p, &self.last_p)) {
+        let continuing = self.modal_valid && same(q, &self.last_q) && same(p, &self.last_p);
+        if !continuing {
             omega.physical_to_modal(q, &mut self.q0m);
             omega.physical_to_modal(p, &mut self.p0m);
         }
         self.modal_valid = false;
-        for j in 0..s {
-            self.stages[j * d..(j + 1) * d].copy_from_slice(q);
+        let extrapolate = std::mem::take(&mut self.have_previous)
+            && continuing
+            && self.settings.predictor == Predictor::Extrapolate;
+        let mut g_evals;
+        if extrapolate {
+            // Start: the previous step's continuous solution at τ = 1 + cᵢ (its modal start
+            // and moments are still held).
+            let mut modal = std::mem::take(&mut self.modal);
+            let mut stages = std::mem::take(&mut self.stages);
+            for i in 0..s {
+                self.stage_modal(s + 1 + i, &mut modal);
+                self.system
+                    .omega()
+                    .modal_to_physical(&modal, &mut stages[i * d..(i + 1) * d]);
+            }
+            self.modal = modal;
+            self.stages = stages;
+            for j in 0..s {
+                self.eval_f(j)?;
+            }
+            g_evals = s;
+        } else {
+            for j in 0..s {
+                self.stages[j * d..(j + 1) * d].copy_from_slice(q);
+            }
+            self.eval_f(0)?;
+            for j in 1..s {
+                let (first, rest) = self.f.split_at_mut(j * d);
+                rest[..d].copy_from_slice(&first[..d]);
+            }
+            g_evals = 1;
         }
-        self.eval_f(0)?;
-        for j in 1..s {
-            let (first, rest) = self.f.split_at_mut(j * d);
-            rest[..d].copy_from_slice(&first[..d]);
-        }
-        let (mut g_evals, mut sweeps, mut previous) = (1, 0, f64::INFINITY);
+        let (mut sweeps, mut previous) = (0, f64::INFINITY);
         let (residual, converged) = loop {
             self.update_moments();
             let mut modal = std::mem::take(&mut self.modal);
@@ -521,8 +566,7 @@ impl<S: SecondOrderSystem, K: Kernel> TcStepper<S, K> {
                     "stage values (the fixed-point iteration diverged)",
                 ));
             }
-            let stagnated = residual <= ROUNDOFF_RESIDUAL && residual > 0.5 * previous;
-            if residual <= self.settings.tolerance || stagnated {
+            if sweeps_converged(residual, previous, self.settings.tolerance) {
                 break (residual, true);
             }
             if sweeps >= self.settings.max_sweeps {
@@ -558,8 +602,11 @@ impl<S: SecondOrderSystem, K: Kernel> TcStepper<S, K> {
         let omega = self.system.omega();
         omega.modal_to_physical(&modal, q);
         omega.modal_to_physical(&self.new_stages[..d], p);
+        std::mem::swap(&mut self.q0m, &mut self.prev_q0m);
+        std::mem::swap(&mut self.p0m, &mut self.prev_p0m);
         self.q0m.copy_from_slice(&modal);
         self.p0m.copy_from_slice(&self.new_stages[..d]);
+        self.have_previous = true;
         self.last_q.copy_from_slice(q);
         self.last_p.copy_from_slice(p);
         self.modal_valid = true;

@@ -312,6 +312,7 @@ fn stage_solver_modes() {
         tolerance: 1e-16,
         max_sweeps: 2,
         on_limit: SweepLimit::Error,
+        ..SolverSettings::default()
     };
     let mut st = EcStepper::with_nodes(duffing_system(p.clone()), 2, 2, 0.1, strict).unwrap();
     let mut y = p.initial_value();

@@ -608,6 +608,7 @@ fn energy_drift_diagnostic() {
                     tolerance: 0.0,
                     max_sweeps: 60,
                     on_limit: SweepLimit::Accept,
+                    ..SolverSettings::default()
                 },
             ),
         ] {

@@ -16,7 +16,7 @@
 use crate::integrate::Integrator;
 use crate::operator::{LinearOperator, PhiBank, Zero};
 use crate::stepper::{
-    ROUNDOFF_RESIDUAL, RuntimeKernel, SolverSettings, StepReport, Stepper, SweepLimit, VecBuffers,
+    RuntimeKernel, SolverSettings, StepReport, Stepper, SweepLimit, VecBuffers, sweeps_converged,
 };
 use crate::system::System;
 use crate::tables::{QuadratureKind, coefficients};
@@ -217,8 +217,7 @@ impl<S: System> ExpAvf<S> {
             if !residual.is_finite() {
                 return Err(Error::NonFinite("the fixed-point iteration diverged"));
             }
-            let stagnated = residual <= ROUNDOFF_RESIDUAL && residual > 0.5 * previous;
-            if residual <= self.settings.tolerance || stagnated {
+            if sweeps_converged(residual, previous, self.settings.tolerance) {
                 break (residual, true);
             }
             if sweeps >= self.settings.max_sweeps {

@@ -3,7 +3,7 @@
 
 use ecr_runtime::operator::{SkewGenerator, SkewPair};
 use ecr_runtime::problems::{Nls, Nls2d};
-use ecr_runtime::stepper::{EcStepper, SolverSettings};
+use ecr_runtime::stepper::EcStepper;
 use ecr_runtime::system::System;
 use std::time::Instant;
 
@@ -84,8 +84,7 @@ fn measure<C: SkewGenerator, S: System<Op = SkewPair<C>>>(
 ) -> Result<ScalingPoint, String> {
     let d = y0.len();
     let start = Instant::now();
-    let mut stepper =
-        EcStepper::with_nodes(sys, R, R, H, SolverSettings::default()).map_err(err_s)?;
+    let mut stepper = EcStepper::with_nodes(sys, R, R, H, super::sweep::solver()).map_err(err_s)?;
     let setup_seconds = start.elapsed().as_secs_f64();
     let e0 = nls_energy(stepper.system().linear(), &y0);
     let mut y = y0;

@@ -216,8 +216,10 @@ fn work_precision(w: &mut String, c: &Config, r: &Results) {
          the integration only: building the integrator — coefficient tables, φ-functions — is \
          excluded), the median of {} run(s) per point. Global error: max-norm of y(T) − \
          y_ref(T). Energy error: max over every step of |H(y_n) − H(y_0)| / |H(y_0)|, measured in \
-         a separate untimed run. Implicit methods iterate their stage equations to convergence \
-         (tolerance 1e-15 or round-off stagnation). Each series halves h from its largest step \
+         a separate untimed run. Implicit methods (ECrP, TCrP, RKEPC2, Gauss, AVF, ExpAVF) \
+         iterate their stage equations to convergence (estimated error ≤ 1e-15 or round-off \
+         stagnation), starting from the previous step's continuous solution extrapolated to \
+         the new nodes (`Predictor::Extrapolate`). Each series halves h from its largest step \
          size until the error is ≤ {ERROR_FLOOR:e}, stagnates at round-off, a run exceeds \
          {} s or {} points were recorded; points with error > {ERROR_CEILING:e} or failures \
          are skipped (listed per problem). DOP853 sweeps rtol = atol over 1e-4 … 1e-13 with a \

@@ -11,8 +11,17 @@ use ecr_runtime::baselines::exponential::HochOst4;
 use ecr_runtime::integrate::{IntegrateOptions, integrate};
 use ecr_runtime::problems::{Duffing, Nls, Wind};
 use ecr_runtime::second_order::{Omega, SecondOrder, TcStepper};
-use ecr_runtime::stepper::{EcStepper, SolverSettings};
+use ecr_runtime::stepper::{EcStepper, Predictor, SolverSettings};
 use std::time::Instant;
+
+/// The stage solver of every implicit method in the benchmark (ECrP, TCrP, HBVM family):
+/// the defaults (tolerance 1e-15, convergence required) with the extrapolating predictor.
+pub fn solver() -> SolverSettings {
+    SolverSettings {
+        predictor: Predictor::Extrapolate,
+        ..SolverSettings::default()
+    }
+}
 
 /// Stop refining a series once its global error is below this.
 pub const ERROR_FLOOR: f64 = 1e-12;
@@ -311,7 +320,7 @@ fn ec_reference(
 ) -> Result<(Vec<f64>, f64), String> {
     let y0 = problem.initial_value();
     let run = |h| {
-        ec(problem, r, r, h, SolverSettings::default())
+        ec(problem, r, r, h, solver())
             .map_err(err_s)
             .and_then(|i| timed(i, &y0, t_end))
             .map(|(y, _)| y)
@@ -342,7 +351,7 @@ fn ec_series(problem: &Problem, r: usize, s: usize, h0: f64, group: &'static str
         r: Some(r),
         s: Some(s),
         knob: Knob::Step { h0 },
-        build: Box::new(move |h| ec(&p, r, s, h, SolverSettings::default())),
+        build: Box::new(move |h| ec(&p, r, s, h, solver())),
     }
 }
 
@@ -378,7 +387,7 @@ fn dop_series(problem: &Problem, macro_h: f64) -> Series {
 
 /// The baselines run on Duffing and wind (dense 2 × 2 / small systems).
 fn dense_baselines(problem: &Problem, h0: f64) -> Result<Vec<Series>, String> {
-    let settings = SolverSettings::default();
+    let settings = solver();
     let eei = registry_build("EEI3s4")?;
     let mut v = Vec::new();
     let p = problem.clone();
@@ -431,13 +440,7 @@ fn tc_series(r: usize, h0: f64) -> Series {
             move |q: &[f64], f: &mut [f64]| f[0] = -2.0 * k2 * q[0].powi(3),
             move |q: &[f64]| -0.5 * k2 * q[0].powi(4),
         );
-        boxed(TcStepper::with_nodes(
-            sys,
-            r,
-            r,
-            h,
-            SolverSettings::default(),
-        ))
+        boxed(TcStepper::with_nodes(sys, r, r, h, solver()))
     })
     .with_rs(r, r)
 }
@@ -561,13 +564,7 @@ fn nls(c: &Config) -> Result<ProblemRun, String> {
         let n = n.clone();
         series.push(
             step_series(&format!("EC{r}P dense"), "ECrP dense", h0, move |h| {
-                boxed(EcStepper::with_nodes(
-                    n.dense_system()?,
-                    r,
-                    r,
-                    h,
-                    SolverSettings::default(),
-                ))
+                boxed(EcStepper::with_nodes(n.dense_system()?, r, r, h, solver()))
             })
             .with_rs(r, r),
         );
@@ -580,7 +577,7 @@ fn nls(c: &Config) -> Result<ProblemRun, String> {
         "RKEPC2",
         "baselines",
         h0,
-        move |h| on_system!(&p, sys => boxed(rkepc2(sys, h, SolverSettings::default()))),
+        move |h| on_system!(&p, sys => boxed(rkepc2(sys, h, solver()))),
     ));
     series.push(dop_series(&problem, 0.5));
     Ok(run_problem(
@@ -608,7 +605,7 @@ fn long_run(c: &Config) -> Result<LongRun, String> {
     let t = c.long_t;
     let (r, ec_h) = (2, 0.01);
     let y0 = problem.initial_value();
-    let build_ec = || ec(&problem, r, r, ec_h, SolverSettings::default()).map_err(err_s);
+    let build_ec = || ec(&problem, r, r, ec_h, solver()).map_err(err_s);
     let mut times = Vec::new();
     for _ in 0..c.repeats {
         times.push(timed(build_ec()?, &y0, t)?.1);
