@@ -31,8 +31,8 @@ pub const ERROR_CEILING: f64 = 1e-2;
 /// attempts, so a method that needs a much smaller h than h0 still gets its points).
 pub const MAX_HALVINGS: i32 = 24;
 /// Tolerances of the DOP853 sweep (rtol = atol).
-pub const DOP_TOLS: [f64; 10] = [
-    1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12, 1e-13,
+pub const DOP_TOLS: [f64; 12] = [
+    1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12, 1e-13, 1e-14, 1e-15,
 ];
 
 /// Sizes of the benchmark (full or `--quick`).
@@ -121,6 +121,14 @@ pub struct Point {
     pub energy: f64,
 }
 
+/// One finished but unrecorded run of a series: its global error and its seconds.
+#[derive(Clone, Debug)]
+pub struct Attempt {
+    pub series: String,
+    pub error: f64,
+    pub seconds: f64,
+}
+
 /// Everything measured for one problem.
 pub struct ProblemRun {
     pub id: &'static str,
@@ -133,6 +141,9 @@ pub struct ProblemRun {
     pub points: Vec<Point>,
     /// Skipped points and failures, one line each.
     pub notes: Vec<String>,
+    /// Finished runs too inaccurate to record (error > ERROR_CEILING), with the seconds of that
+    /// run (including its per-step energy check).
+    pub attempts: Vec<Attempt>,
 }
 
 /// Result of the equal-CPU-budget energy comparison.
@@ -229,6 +240,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 /// Sweeps one series: step sizes h0/2^i (or the DOP853 tolerances) until the error is below
 /// [`ERROR_FLOOR`], stagnates at round-off, a run exceeds the time budget, or `attempts`
 /// points are recorded. Failed or too inaccurate points are skipped (noted).
+#[allow(clippy::too_many_arguments)]
 fn sweep(
     series: &Series,
     problem: &Problem,
@@ -237,6 +249,7 @@ fn sweep(
     c: &Config,
     points: &mut Vec<Point>,
     notes: &mut Vec<String>,
+    attempts: &mut Vec<Attempt>,
 ) {
     let params: Vec<f64> = match series.knob {
         Knob::Step { h0 } => (0..MAX_HALVINGS).map(|i| h0 / 2f64.powi(i)).collect(),
@@ -263,6 +276,11 @@ fn sweep(
         };
         let error = max_diff(&y, y_ref);
         if error.is_nan() || error > ERROR_CEILING {
+            attempts.push(Attempt {
+                series: series.label.clone(),
+                error,
+                seconds,
+            });
             skipped.push(format!("{what} (error {error:.1e})"));
             if seconds > c.budget {
                 break;
@@ -467,8 +485,18 @@ fn run_problem(
 ) -> ProblemRun {
     let mut points = Vec::new();
     let mut notes = Vec::new();
+    let mut attempts = Vec::new();
     for s in series {
-        sweep(s, problem, t_end, &y_ref, c, &mut points, &mut notes);
+        sweep(
+            s,
+            problem,
+            t_end,
+            &y_ref,
+            c,
+            &mut points,
+            &mut notes,
+            &mut attempts,
+        );
         if !points.iter().any(|p| p.series == s.label) {
             notes.push(format!(
                 "{}: no point with error ≤ {ERROR_CEILING:e}",
@@ -485,6 +513,7 @@ fn run_problem(
         series: series.iter().map(|s| (s.label.clone(), s.group)).collect(),
         points,
         notes,
+        attempts,
     }
 }
 
