@@ -109,7 +109,8 @@ fn phi_banks(c: &mut Criterion) {
 
 criterion_group! {
     name = benches;
-    config = Criterion::default().sample_size(20);
+    // No plots: criterion's plotting backend needs system fonts, which a fresh machine may lack.
+    config = Criterion::default().sample_size(20).without_plots();
     targets = phi_banks
 }
 criterion_main!(benches);

@@ -135,5 +135,10 @@ fn steppers(c: &mut Criterion) {
     bench_problem(c, "wind_d2", w.linear_matrix(), [wy[0], wy[1]], wind_g);
 }
 
-criterion_group!(benches, steppers);
+// No plots: criterion's plotting backend needs system fonts, which a fresh machine may lack.
+criterion_group! {
+    name = benches;
+    config = Criterion::default().without_plots();
+    targets = steppers
+}
 criterion_main!(benches);
