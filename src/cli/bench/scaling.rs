@@ -9,6 +9,8 @@ use std::time::Instant;
 
 /// Step size of every run (the paper's energy step for the NLS).
 pub const H: f64 = 1.0 / 200.0;
+/// Most steps per timed run (h · MAX_STEPS = 1).
+pub const MAX_STEPS: usize = 200;
 /// Order parameter: EC2P (order 4), s = r = 2.
 pub const R: usize = 2;
 
@@ -91,7 +93,10 @@ fn measure<C: SkewGenerator, S: System<Op = SkewPair<C>>>(
     let t = Instant::now();
     stepper.step(&mut y).map_err(err_s)?;
     let first = t.elapsed().as_secs_f64().max(1e-9);
-    let steps = ((min_run / first).ceil() as usize).clamp(3, 100_000);
+    // At most MAX_STEPS per run, so that every size simulates about the same interval (the
+    // dynamics, and so the sweeps per step, change along a long run: the 2D focusing NLS with
+    // this much mass develops a modulational instability within t ≈ 10).
+    let steps = ((min_run / first).ceil() as usize).clamp(3, MAX_STEPS);
     let (mut times, mut sweeps) = (Vec::new(), 0usize);
     for _ in 0..repeats {
         let t = Instant::now();
@@ -151,7 +156,7 @@ fn fit(what: String, pts: &[&ScalingPoint]) -> Fit {
 
 /// Runs the study: 1D N = 2^7 … 2^16 and 2D n = 32 … 512 (`quick`: 1D up to 2^10, 2D up to 64).
 pub fn run(quick: bool, progress: &mut dyn FnMut(&str)) -> Result<Scaling, String> {
-    let (repeats, min_run) = if quick { (1, 0.005) } else { (3, 0.3) };
+    let (repeats, min_run) = if quick { (1, 0.005) } else { (5, 0.3) };
     let (max_1d, max_2d) = if quick { (10, 6) } else { (16, 9) };
     let mut points = Vec::new();
     for k in 7..=max_1d {

@@ -200,13 +200,15 @@ fn scaling_section(w: &mut String, s: &Scaling) {
          EC{r}P (r = s = {r}, h = {h}, stage equations iterated to convergence) on the cubic NLS \
          with the linear part as a skew pair of a circulant applied by FFT: 1D (`Nls`, N points, \
          d = 2N) and 2D (`Nls2d`, n × n points, d = 2n², Laplacian D₂ ⊗ I + I ⊗ D₂ by 2D FFT). \
-         Seconds per step: median of {rep} run(s) of at least {min} s each, after one warm-up \
-         step; the φ-bank is built once per run (setup, not timed in the step cost). Data: \
+         Seconds per step: median of {rep} run(s) of at least {min} s or {max} steps each \
+         (t ≤ {t} per run), after one warm-up step; the φ-bank is built once per run (setup, not timed in the step cost). Data: \
          `scaling.csv`; figure `scaling` (.png, .svg).\n",
         r = scaling::R,
         h = scaling::H,
         rep = s.repeats,
         min = s.min_run,
+        max = scaling::MAX_STEPS,
+        t = scaling::MAX_STEPS as f64 * scaling::H,
     );
     let _ = writeln!(
         w,
