@@ -41,17 +41,18 @@ pub const STAGNATION_THETA: f64 = 0.9;
 /// of 1e−15 leaves an error of 1.5e−15, and "no longer halving" is not stagnation there), and
 /// the estimate alone stops fast contractions (θ = 0.01) with an error of `tolerance` where one
 /// more cheap sweep would reach round-off.
+///
+/// Division-free (it runs once per sweep on the hot path): with θ = r/p, θ/(1 − θ) = r/(p − r),
+/// so the estimate is r when 2r ≤ p (or θ ≥ 1) and r²/(p − r) otherwise.
+#[inline]
 pub fn sweeps_converged(residual: f64, previous: f64, tolerance: f64) -> bool {
-    if residual == 0.0 {
-        return true;
-    }
-    let theta = residual / previous; // 0 on the first sweep (previous = ∞)
-    let estimate = if theta < 1.0 {
-        residual * (theta / (1.0 - theta)).max(1.0)
+    let (r, p) = (residual, previous); // p = ∞ on the first sweep: θ = 0
+    let estimate_ok = if r < p && 2.0 * r > p {
+        r * r <= tolerance * (p - r)
     } else {
-        residual
+        r <= tolerance
     };
-    estimate <= tolerance || (residual <= ROUNDOFF_RESIDUAL && theta >= STAGNATION_THETA)
+    estimate_ok || (r <= ROUNDOFF_RESIDUAL && r >= STAGNATION_THETA * p)
 }
 
 /// What to do when the stage equations have not converged after the allowed sweeps.
@@ -662,5 +663,38 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
         let coef: Vec<f64> = (0..r).map(|k| self.h * tau.powi(k as i32 + 1)).collect();
         bank.combine(0..1, y0, self.buf.moments(), &coef, &mut out, &mut ws);
         Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::sweeps_converged;
+
+    const TOL: f64 = 1e-15;
+
+    #[test]
+    fn stopping_rule() {
+        let inf = f64::INFINITY;
+        // First sweep: the update itself.
+        assert!(sweeps_converged(0.0, inf, TOL));
+        assert!(sweeps_converged(1e-16, inf, TOL));
+        assert!(!sweeps_converged(1e-14, inf, TOL));
+        // Slow contraction θ = 0.6: an update of 1e-15 still leaves ≈ 1.5e-15.
+        assert!(!sweeps_converged(1e-15, 1e-15 / 0.6, TOL));
+        assert!(sweeps_converged(6e-16, 1e-15, TOL));
+        // Fast contraction θ = 0.01: the update decides.
+        assert!(sweeps_converged(1e-15, 1e-13, TOL));
+        assert!(!sweeps_converged(2e-15, 2e-13, TOL));
+        // Not contracting (θ ≥ 1): the update decides, and at round-off it is stagnation.
+        assert!(sweeps_converged(8e-16, 5e-16, TOL));
+        assert!(sweeps_converged(1e-14, 1.05e-14, TOL));
+        assert!(sweeps_converged(1e-14, 0.9e-14, TOL));
+        // Still halving at round-off level: not stagnation, go on.
+        assert!(!sweeps_converged(1e-14, 2e-14, TOL));
+        // Far above round-off and not contracting: no.
+        assert!(!sweeps_converged(1e-10, 1e-11, TOL));
+        // NaN is never convergence (the stepper reports divergence).
+        assert!(!sweeps_converged(f64::NAN, 1e-3, TOL));
+        assert!(!sweeps_converged(f64::NAN, inf, TOL));
     }
 }
