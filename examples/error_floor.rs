@@ -1,0 +1,70 @@
+//! The error floor of ECrP per r (issue: numerical stability at the extremes), and the
+//! conditioning of the moment weights behind it.
+//!
+//! For r = 1..=12 (s = r, and s = r + 2 up to 16): the smallest global error ECrP reaches on
+//! Duffing (ω = 1, k = 0.5, T = 10, exact solution) as h is halved from 1, and how far the
+//! f64-rounded moment weights are from an exact identity: Σ_k w_kj/(k+1)! = b_j (the update
+//! with A = 0 is the quadrature Σ b_j g(Y_j)). Large |w_kj| with alternating signs (the
+//! monomial moment basis) make that sum lose digits, which perturbs the method's quadrature
+//! systematically: in long runs it shows up as energy drift.
+//!
+//! Run: `cargo run --release --example error_floor`.
+
+use ecr::runtime::problems::Duffing;
+use ecr::runtime::stepper::{EcStepper, RuntimeKernel, SolverSettings};
+
+fn main() -> Result<(), ecr::runtime::Error> {
+    let p = Duffing::new(1.0, 0.5)?;
+    let t_end = 10.0;
+    let exact = p.exact(t_end)?;
+    println!(
+        "| r | s | floor (min error over h = 1/2^i) | at h | max abs w_kj | max rel. error of sum_k w_kj/(k+1)! vs b_j |"
+    );
+    println!("|---|---|---|---|---|---|");
+    for r in 1..=12usize {
+        for s in [r, r + 2] {
+            if s > 16 {
+                continue;
+            }
+            let kernel = RuntimeKernel::new(r, s)?;
+            let c = kernel.coefficients();
+            let mut weight_err = 0.0f64;
+            for j in 0..s {
+                // Σ_k w_kj/(k+1)! accumulated in f64, as the stepper's A = 0 update does.
+                let (mut sum, mut fact) = (0.0, 1.0);
+                for k in 0..r {
+                    fact *= (k + 1) as f64;
+                    sum += c.w[k * s + j] / fact;
+                }
+                weight_err = weight_err.max(((sum - c.weights[j]) / c.weights[j]).abs());
+            }
+            let wmax = c.w.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            let (mut best, mut best_h) = (f64::INFINITY, 0.0);
+            let mut failures = Vec::new();
+            for i in 0..14 {
+                let h = 1.0 / 2f64.powi(i);
+                let mut st =
+                    EcStepper::with_nodes(p.system()?, r, s, h, SolverSettings::default())?;
+                let mut y = p.initial_value();
+                let n = (t_end / h).round() as usize;
+                if let Err(e) = (0..n).try_for_each(|_| st.step(&mut y).map(|_| ())) {
+                    failures.push(format!("h = 1/{}: {e}", 1u64 << i));
+                    continue;
+                }
+                let err = y
+                    .iter()
+                    .zip(&exact)
+                    .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+                if err < best {
+                    best = err;
+                    best_h = h;
+                }
+            }
+            println!("| {r} | {s} | {best:.2e} | {best_h} | {wmax:.3e} | {weight_err:.2e} |");
+            for f in failures {
+                println!("|   |   | failed: {f} | | | |");
+            }
+        }
+    }
+    Ok(())
+}
