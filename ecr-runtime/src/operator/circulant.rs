@@ -157,22 +157,92 @@ impl Circulant {
     }
 }
 
-/// φ-bank of [`Circulant`]: `φ_k(τ_i h λ_m)` per Fourier mode.
+/// φ-bank of an operator with complex eigenvalues λ in a [`SpectralBasis`] (the circulants
+/// [`Circulant`] and [`Circulant2d`](super::Circulant2d)): `φ_k(τ_i h λ_m)` per mode;
+/// `combine` costs one forward transform per input vector and one inverse per output block.
 #[derive(Debug, Clone)]
-pub struct CirculantBank {
+pub struct SpectralBank<B: SpectralBasis> {
     len: usize,
     p: usize,
     /// `phis[((i (p+1) + k) n + mode] = φ_k(τ_i h λ_mode)`.
     phis: Vec<Complex64>,
-    basis: FourierBasis,
+    basis: B,
 }
 
-/// Scratch of [`CirculantBank`]: spectra of the inputs, one output buffer, FFT scratch.
+/// Scratch of [`SpectralBank`]: spectra of the inputs, one output buffer, transform scratch.
 #[derive(Debug, Clone)]
-pub struct CirculantWorkspace {
+pub struct SpectralWorkspace<S> {
     spec: Vec<Complex64>,
     buf: Vec<Complex64>,
-    scratch: Vec<Complex64>,
+    scratch: S,
+}
+
+/// φ-bank of [`Circulant`].
+pub type CirculantBank = SpectralBank<FourierBasis>;
+/// Scratch of [`CirculantBank`].
+pub type CirculantWorkspace = SpectralWorkspace<Vec<Complex64>>;
+
+impl<B: SpectralBasis> SpectralBank<B> {
+    /// `φ_k(τ_i h λ_m)` for every node, k ≤ p and mode m.
+    ///
+    /// # Errors
+    /// As [`LinearOperator::phi_bank`].
+    pub(super) fn build(
+        basis: &B,
+        lambda: &[Complex64],
+        h: f64,
+        taus: &[f64],
+        p: usize,
+    ) -> Result<Self> {
+        check_bank_args(h, taus)?;
+        let n = lambda.len();
+        let mut phis = vec![Complex64::new(0.0, 0.0); taus.len() * (p + 1) * n];
+        let mut buf = vec![Complex64::new(0.0, 0.0); p + 1];
+        for (i, tau) in taus.iter().enumerate() {
+            let th = tau * h;
+            for (mode, l) in lambda.iter().enumerate() {
+                phi_complex(Complex64::new(th * l.re, th * l.im), &mut buf);
+                for (k, v) in buf.iter().enumerate() {
+                    phis[(i * (p + 1) + k) * n + mode] = *v;
+                }
+            }
+        }
+        check_bank_values(phis.iter().flat_map(|v| [v.re, v.im]))?;
+        Ok(SpectralBank {
+            len: taus.len(),
+            p,
+            phis,
+            basis: basis.clone(),
+        })
+    }
+}
+
+/// `y = V diag(λ) V⁻¹ x` with the buffers behind `scratch` (the operators' `apply`, which has
+/// no workspace argument: concurrent calls on one operator serialise).
+pub(super) fn spectral_apply<B: SpectralBasis>(
+    basis: &B,
+    lambda: &[Complex64],
+    scratch: &Mutex<(Vec<Complex64>, B::Scratch)>,
+    x: &[f64],
+    y: &mut [f64],
+) {
+    debug_assert_eq!(x.len(), lambda.len());
+    debug_assert_eq!(y.len(), lambda.len());
+    let mut guard = scratch
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner());
+    let (buf, scratch) = &mut *guard;
+    for (b, xv) in buf.iter_mut().zip(x) {
+        *b = Complex64::new(*xv, 0.0);
+    }
+    basis.forward(buf, scratch);
+    for (b, l) in buf.iter_mut().zip(lambda) {
+        *b *= l;
+    }
+    basis.inverse(buf, scratch);
+    for (yv, b) in y.iter_mut().zip(buf.iter()) {
+        *yv = b.re;
+    }
 }
 
 impl LinearOperator for Circulant {
@@ -185,47 +255,11 @@ impl LinearOperator for Circulant {
     /// `y = c ⊛ x` by FFT (O(n log n)); uses internal buffers behind a mutex, so concurrent
     /// calls on one operator serialise.
     fn apply(&self, x: &[f64], y: &mut [f64]) {
-        debug_assert_eq!(x.len(), self.c.len());
-        debug_assert_eq!(y.len(), self.c.len());
-        let mut guard = self
-            .apply_scratch
-            .lock()
-            .unwrap_or_else(|poisoned| poisoned.into_inner());
-        let (buf, scratch) = &mut *guard;
-        for (b, xv) in buf.iter_mut().zip(x) {
-            *b = Complex64::new(*xv, 0.0);
-        }
-        self.basis.forward(buf, scratch);
-        for (b, l) in buf.iter_mut().zip(&self.lambda) {
-            *b *= l;
-        }
-        self.basis.inverse(buf, scratch);
-        for (yv, b) in y.iter_mut().zip(buf.iter()) {
-            *yv = b.re;
-        }
+        spectral_apply(&self.basis, &self.lambda, &self.apply_scratch, x, y);
     }
 
     fn phi_bank(&self, h: f64, taus: &[f64], p: usize) -> Result<CirculantBank> {
-        check_bank_args(h, taus)?;
-        let n = self.c.len();
-        let mut phis = vec![Complex64::new(0.0, 0.0); taus.len() * (p + 1) * n];
-        let mut buf = vec![Complex64::new(0.0, 0.0); p + 1];
-        for (i, tau) in taus.iter().enumerate() {
-            let th = tau * h;
-            for (mode, l) in self.lambda.iter().enumerate() {
-                phi_complex(Complex64::new(th * l.re, th * l.im), &mut buf);
-                for (k, v) in buf.iter().enumerate() {
-                    phis[(i * (p + 1) + k) * n + mode] = *v;
-                }
-            }
-        }
-        check_bank_values(phis.iter().flat_map(|v| [v.re, v.im]))?;
-        Ok(CirculantBank {
-            len: taus.len(),
-            p,
-            phis,
-            basis: self.basis.clone(),
-        })
+        SpectralBank::build(&self.basis, &self.lambda, h, taus, p)
     }
 }
 
@@ -250,11 +284,11 @@ pub(super) fn spectral_block(
     }
 }
 
-impl PhiBank for CirculantBank {
-    type Workspace = CirculantWorkspace;
+impl<B: SpectralBasis> PhiBank for SpectralBank<B> {
+    type Workspace = SpectralWorkspace<B::Scratch>;
 
     fn dim(&self) -> usize {
-        self.basis.n
+        self.basis.dim()
     }
     fn len(&self) -> usize {
         self.len
@@ -262,9 +296,9 @@ impl PhiBank for CirculantBank {
     fn p(&self) -> usize {
         self.p
     }
-    fn workspace(&self) -> CirculantWorkspace {
-        let n = self.basis.n;
-        CirculantWorkspace {
+    fn workspace(&self) -> Self::Workspace {
+        let n = self.basis.dim();
+        SpectralWorkspace {
             spec: vec![Complex64::new(0.0, 0.0); (self.p + 1) * n],
             buf: vec![Complex64::new(0.0, 0.0); n],
             scratch: self.basis.scratch(),
@@ -278,9 +312,9 @@ impl PhiBank for CirculantBank {
         g: &[f64],
         coef: &[f64],
         out: &mut [f64],
-        ws: &mut CirculantWorkspace,
+        ws: &mut Self::Workspace,
     ) {
-        let n = self.basis.n;
+        let n = self.basis.dim();
         let m = combine_shape(n, self.len, self.p, &indices, y0, g, coef, out);
         if indices.is_empty() {
             return;
@@ -303,8 +337,8 @@ impl PhiBank for CirculantBank {
         }
     }
 
-    fn apply(&self, i: usize, k: usize, x: &[f64], out: &mut [f64], ws: &mut CirculantWorkspace) {
-        let n = self.basis.n;
+    fn apply(&self, i: usize, k: usize, x: &[f64], out: &mut [f64], ws: &mut Self::Workspace) {
+        let n = self.basis.dim();
         apply_shape(n, self.len, self.p, i, k, x, out);
         let f = &self.phis[(i * (self.p + 1) + k) * n..(i * (self.p + 1) + k + 1) * n];
         for (b, xv) in ws.buf.iter_mut().zip(x) {

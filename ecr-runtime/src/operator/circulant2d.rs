@@ -2,18 +2,14 @@
 //! blocks), by the 2D FFT: 1D transforms along the rows, then along the columns.
 
 use std::fmt;
-use std::ops::Range;
 use std::sync::{Arc, Mutex};
 
 use num_complex::Complex64;
 use rustfft::{Fft, FftPlanner};
 
-use super::circulant::spectral_block;
+use super::LinearOperator;
+use super::circulant::{SpectralBank, SpectralWorkspace, spectral_apply};
 use super::skew::{SkewGenerator, SpectralBasis};
-use super::{
-    LinearOperator, PhiBank, apply_shape, check_bank_args, check_bank_values, combine_shape,
-};
-use crate::phi::phi_complex;
 use crate::{Error, Result};
 
 /// Relative asymmetry of the first column tolerated by [`SkewGenerator::real_spectrum`].
@@ -271,22 +267,9 @@ impl Circulant2d {
 }
 
 /// φ-bank of [`Circulant2d`]: `φ_k(τ_i h λ_m)` per 2D Fourier mode.
-#[derive(Debug, Clone)]
-pub struct Circulant2dBank {
-    len: usize,
-    p: usize,
-    /// `phis[((i (p+1) + k) n + mode] = φ_k(τ_i h λ_mode)`, `n = nx·ny`.
-    phis: Vec<Complex64>,
-    basis: Fourier2dBasis,
-}
-
-/// Scratch of [`Circulant2dBank`]: spectra of the inputs, one output buffer, FFT scratch.
-#[derive(Debug, Clone)]
-pub struct Circulant2dWorkspace {
-    spec: Vec<Complex64>,
-    buf: Vec<Complex64>,
-    scratch: Fourier2dScratch,
-}
+pub type Circulant2dBank = SpectralBank<Fourier2dBasis>;
+/// Scratch of [`Circulant2dBank`].
+pub type Circulant2dWorkspace = SpectralWorkspace<Fourier2dScratch>;
 
 impl LinearOperator for Circulant2d {
     type Bank = Circulant2dBank;
@@ -298,118 +281,11 @@ impl LinearOperator for Circulant2d {
     /// `y = c ⊛ x` by 2D FFT (O(d log d)); uses internal buffers behind a mutex, so
     /// concurrent calls on one operator serialise.
     fn apply(&self, x: &[f64], y: &mut [f64]) {
-        debug_assert_eq!(x.len(), self.c.len());
-        debug_assert_eq!(y.len(), self.c.len());
-        let mut guard = self
-            .apply_scratch
-            .lock()
-            .unwrap_or_else(|poisoned| poisoned.into_inner());
-        let (buf, scratch) = &mut *guard;
-        for (b, xv) in buf.iter_mut().zip(x) {
-            *b = Complex64::new(*xv, 0.0);
-        }
-        self.basis.forward(buf, scratch);
-        for (b, l) in buf.iter_mut().zip(&self.lambda) {
-            *b *= l;
-        }
-        self.basis.inverse(buf, scratch);
-        for (yv, b) in y.iter_mut().zip(buf.iter()) {
-            *yv = b.re;
-        }
+        spectral_apply(&self.basis, &self.lambda, &self.apply_scratch, x, y);
     }
 
     fn phi_bank(&self, h: f64, taus: &[f64], p: usize) -> Result<Circulant2dBank> {
-        check_bank_args(h, taus)?;
-        let n = self.c.len();
-        let mut phis = vec![Complex64::new(0.0, 0.0); taus.len() * (p + 1) * n];
-        let mut buf = vec![Complex64::new(0.0, 0.0); p + 1];
-        for (i, tau) in taus.iter().enumerate() {
-            let th = tau * h;
-            for (mode, l) in self.lambda.iter().enumerate() {
-                phi_complex(Complex64::new(th * l.re, th * l.im), &mut buf);
-                for (k, v) in buf.iter().enumerate() {
-                    phis[(i * (p + 1) + k) * n + mode] = *v;
-                }
-            }
-        }
-        check_bank_values(phis.iter().flat_map(|v| [v.re, v.im]))?;
-        Ok(Circulant2dBank {
-            len: taus.len(),
-            p,
-            phis,
-            basis: self.basis.clone(),
-        })
-    }
-}
-
-impl PhiBank for Circulant2dBank {
-    type Workspace = Circulant2dWorkspace;
-
-    fn dim(&self) -> usize {
-        self.basis.nx * self.basis.ny
-    }
-    fn len(&self) -> usize {
-        self.len
-    }
-    fn p(&self) -> usize {
-        self.p
-    }
-    fn workspace(&self) -> Circulant2dWorkspace {
-        let n = self.dim();
-        Circulant2dWorkspace {
-            spec: vec![Complex64::new(0.0, 0.0); (self.p + 1) * n],
-            buf: vec![Complex64::new(0.0, 0.0); n],
-            scratch: self.basis.scratch(),
-        }
-    }
-
-    fn combine(
-        &self,
-        indices: Range<usize>,
-        y0: &[f64],
-        g: &[f64],
-        coef: &[f64],
-        out: &mut [f64],
-        ws: &mut Circulant2dWorkspace,
-    ) {
-        let n = self.dim();
-        let m = combine_shape(n, self.len, self.p, &indices, y0, g, coef, out);
-        if indices.is_empty() {
-            return;
-        }
-        let inputs = std::iter::once(y0).chain(g.chunks_exact(n));
-        for (s, x) in ws.spec.chunks_exact_mut(n).zip(inputs) {
-            for (sv, xv) in s.iter_mut().zip(x) {
-                *sv = Complex64::new(*xv, 0.0);
-            }
-            self.basis.forward(s, &mut ws.scratch);
-        }
-        let stride = (self.p + 1) * n;
-        for ((j, i), o) in indices.enumerate().zip(out.chunks_exact_mut(n)) {
-            let f = &self.phis[i * stride..(i + 1) * stride];
-            spectral_block(&mut ws.buf, f, &ws.spec, &coef[j * m..(j + 1) * m]);
-            self.basis.inverse(&mut ws.buf, &mut ws.scratch);
-            for (ov, b) in o.iter_mut().zip(&ws.buf) {
-                *ov = b.re;
-            }
-        }
-    }
-
-    fn apply(&self, i: usize, k: usize, x: &[f64], out: &mut [f64], ws: &mut Circulant2dWorkspace) {
-        let n = self.dim();
-        apply_shape(n, self.len, self.p, i, k, x, out);
-        let f = &self.phis[(i * (self.p + 1) + k) * n..(i * (self.p + 1) + k + 1) * n];
-        for (b, xv) in ws.buf.iter_mut().zip(x) {
-            *b = Complex64::new(*xv, 0.0);
-        }
-        self.basis.forward(&mut ws.buf, &mut ws.scratch);
-        for (b, fv) in ws.buf.iter_mut().zip(f) {
-            *b *= fv;
-        }
-        self.basis.inverse(&mut ws.buf, &mut ws.scratch);
-        for (ov, b) in out.iter_mut().zip(&ws.buf) {
-            *ov = b.re;
-        }
+        SpectralBank::build(&self.basis, &self.lambda, h, taus, p)
     }
 }
 

@@ -42,7 +42,9 @@ mod dense;
 mod simple;
 mod skew;
 
-pub use circulant::{Circulant, CirculantBank, CirculantWorkspace, FourierBasis};
+pub use circulant::{
+    Circulant, CirculantBank, CirculantWorkspace, FourierBasis, SpectralBank, SpectralWorkspace,
+};
 pub use circulant2d::{
     Circulant2d, Circulant2dBank, Circulant2dWorkspace, Fourier2dBasis, Fourier2dScratch,
 };
