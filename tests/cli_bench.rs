@@ -2,40 +2,11 @@
 //! summary.md covering every problem and target; an unusable --out is a one-line error with
 //! exit status 2.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
 
-fn ecr(args: &[&str]) -> (i32, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_ecr"))
-        .args(args)
-        .output()
-        .expect("run ecr");
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8(out.stdout).unwrap(),
-        String::from_utf8(out.stderr).unwrap(),
-    )
-}
+use common::{TempDir, ecr};
 
-/// A fresh directory under the system temp dir, removed on drop.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(tag: &str) -> Self {
-        let nanos = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map_or(0, |d| d.as_nanos());
-        TempDir(
-            std::env::temp_dir().join(format!("ecr-bench-{tag}-{}-{nanos}", std::process::id())),
-        )
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
+use std::path::Path;
 
 const PROBLEMS: [&str; 3] = ["duffing", "wind", "nls"];
 const HEADER: [&str; 8] = [
@@ -90,7 +61,7 @@ fn check_csv(path: &Path) -> Vec<String> {
 
 #[test]
 fn quick_bench_writes_everything() {
-    let dir = TempDir::new("quick");
+    let dir = TempDir::new("bench-quick");
     let out = dir.0.join("nested").join("out");
     let (code, stdout, stderr) = ecr(&["bench", "--quick", "--out", out.to_str().unwrap()]);
     assert_eq!(code, 0, "stderr: {stderr}");
@@ -196,7 +167,7 @@ fn check_scaling(out: &Path, expect_2d: bool) {
 
 #[test]
 fn only_scaling_runs_only_the_scaling_study() {
-    let dir = TempDir::new("only");
+    let dir = TempDir::new("bench-only");
     let (code, stdout, stderr) = ecr(&[
         "bench",
         "--quick",
@@ -225,7 +196,7 @@ fn only_scaling_runs_only_the_scaling_study() {
 
 #[test]
 fn unusable_out_is_a_one_line_error() {
-    let dir = TempDir::new("bad");
+    let dir = TempDir::new("bench-bad");
     std::fs::create_dir_all(&dir.0).unwrap();
     let file = dir.0.join("not-a-dir");
     std::fs::write(&file, b"x").unwrap();

@@ -2,42 +2,11 @@
 //! parse with finite numbers, the report covers the three problems; an unusable --out is a
 //! one-line error with exit status 2.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
 
-fn ecr(args: &[&str]) -> (i32, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_ecr"))
-        .args(args)
-        .output()
-        .expect("run ecr");
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8(out.stdout).unwrap(),
-        String::from_utf8(out.stderr).unwrap(),
-    )
-}
+use common::{TempDir, ecr};
 
-/// A fresh directory under the system temp dir, removed on drop.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(tag: &str) -> Self {
-        let nanos = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map_or(0, |d| d.as_nanos());
-        let dir = std::env::temp_dir().join(format!(
-            "ecr-reproduce-{tag}-{}-{nanos}",
-            std::process::id()
-        ));
-        TempDir(dir)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
+use std::path::Path;
 
 const FIGURES: [&str; 5] = ["p1-1", "p1-2", "p2-1", "p2-2", "p3"];
 const ERROR_CSVS: [&str; 6] = ["p1-1a", "p1-1b", "p1-1c", "p2-1a", "p2-2a", "p3a"];
@@ -92,7 +61,7 @@ fn column(header: &[String], name: &str) -> usize {
 
 #[test]
 fn quick_reproduction_writes_everything() {
-    let dir = TempDir::new("quick");
+    let dir = TempDir::new("reproduce-quick");
     let out = dir.0.join("nested").join("out");
     let (code, stdout, stderr) = ecr(&["reproduce", "--quick", "--out", out.to_str().unwrap()]);
     assert_eq!(code, 0, "stderr: {stderr}");
@@ -173,7 +142,7 @@ fn quick_reproduction_writes_everything() {
 
 #[test]
 fn unusable_out_is_a_one_line_error() {
-    let dir = TempDir::new("bad");
+    let dir = TempDir::new("reproduce-bad");
     std::fs::create_dir_all(&dir.0).unwrap();
     // A regular file where the output directory should be (or below it).
     let file = dir.0.join("not-a-dir");

@@ -1,19 +1,9 @@
 //! `ecr run`: the JSON report of each test problem, accuracy and energy on short runs, and
 //! one-line errors with exit status 2 on bad input.
 
-use std::process::Command;
+mod common;
 
-fn ecr(args: &[&str]) -> (i32, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_ecr"))
-        .args(args)
-        .output()
-        .expect("run ecr");
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8(out.stdout).unwrap(),
-        String::from_utf8(out.stderr).unwrap(),
-    )
-}
+use common::ecr;
 
 /// Runs `ecr run ARGS`, expects success and returns the parsed report.
 fn run_ok(args: &[&str]) -> serde_json::Value {

@@ -1,20 +1,11 @@
 //! `ecr tables`: the JSON contract, exact round trip of floats, and one-line errors with
 //! exit status 2 on bad input.
 
-use ecr_codegen::{Family, MethodTable};
-use std::process::Command;
+mod common;
 
-fn ecr(args: &[&str]) -> (i32, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_ecr"))
-        .args(args)
-        .output()
-        .expect("run ecr");
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8(out.stdout).unwrap(),
-        String::from_utf8(out.stderr).unwrap(),
-    )
-}
+use common::ecr;
+
+use ecr_codegen::{Family, MethodTable};
 
 fn bits(v: &serde_json::Value) -> Vec<u64> {
     v.as_array()
