@@ -1,6 +1,8 @@
 //! Command-line interface.
 
 mod bench;
+#[cfg(test)]
+mod fuzz;
 mod reproduce;
 mod run;
 mod tables;
