@@ -630,8 +630,10 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             y.copy_from_slice(y0);
             return Err(Error::NonFinite("new state y₁"));
         }
-        last.copy_from_slice(y);
-        *have_previous = true;
+        if settings.predictor == Predictor::Extrapolate {
+            last.copy_from_slice(y);
+            *have_previous = true;
+        }
         Ok(StepReport {
             sweeps,
             residual,
