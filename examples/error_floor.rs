@@ -1,12 +1,14 @@
 //! The error floor of ECrP per r (issue: numerical stability at the extremes), and the
-//! conditioning of the moment weights behind it.
+//! conditioning of the moment weights.
 //!
 //! For r = 1..=12 (s = r, and s = r + 2 up to 16): the smallest global error ECrP reaches on
-//! Duffing (ω = 1, k = 0.5, T = 10, exact solution) as h is halved from 1, and how far the
-//! f64-rounded moment weights are from an exact identity: Σ_k w_kj/(k+1)! = b_j (the update
-//! with A = 0 is the quadrature Σ b_j g(Y_j)). Large |w_kj| with alternating signs (the
-//! monomial moment basis) make that sum lose digits, which perturbs the method's quadrature
-//! systematically: in long runs it shows up as energy drift.
+//! Duffing (ω = 1, k = 0.5, T = 10, exact solution) as h is halved from 1. For context, the
+//! size of the φ-form moment weights w_kj = b_j β_k(c_j) of DESIGN.md §2 and how far their
+//! f64 values are from the exact identity Σ_k w_kj/(k+1)! = b_j: large |w_kj| with
+//! alternating signs lose digits. The stepper uses the Legendre form instead (moments with
+//! weights ℓ_kj = b_j P̃_k(c_j), |ℓ_kj| ≤ b_j, and directly computed kernels; see
+//! `ecr_runtime::stepper`), whose floor this table shows. The φ-form floor, for comparison,
+//! is what this example printed before the change (commit aa3baab).
 //!
 //! Run: `cargo run --release --example error_floor`.
 
@@ -18,9 +20,9 @@ fn main() -> Result<(), ecr::runtime::Error> {
     let t_end = 10.0;
     let exact = p.exact(t_end)?;
     println!(
-        "| r | s | floor (min error over h = 1/2^i) | at h | max abs w_kj | max rel. error of sum_k w_kj/(k+1)! vs b_j |"
+        "| r | s | floor (min error over h = 1/2^i) | at h | max abs w_kj | max rel. error of sum_k w_kj/(k+1)! vs b_j | max abs l_kj |"
     );
-    println!("|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|");
     for r in 1..=12usize {
         for s in [r, r + 2] {
             if s > 16 {
@@ -39,6 +41,7 @@ fn main() -> Result<(), ecr::runtime::Error> {
                 weight_err = weight_err.max(((sum - c.weights[j]) / c.weights[j]).abs());
             }
             let wmax = c.w.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            let lmax = c.lw.iter().fold(0.0f64, |m, x| m.max(x.abs()));
             let (mut best, mut best_h) = (f64::INFINITY, 0.0);
             let mut failures = Vec::new();
             for i in 0..14 {
@@ -60,9 +63,11 @@ fn main() -> Result<(), ecr::runtime::Error> {
                     best_h = h;
                 }
             }
-            println!("| {r} | {s} | {best:.2e} | {best_h} | {wmax:.3e} | {weight_err:.2e} |");
+            println!(
+                "| {r} | {s} | {best:.2e} | {best_h} | {wmax:.3e} | {weight_err:.2e} | {lmax:.3} |"
+            );
             for f in failures {
-                println!("|   |   | failed: {f} | | | |");
+                println!("|   |   | failed: {f} | | | | |");
             }
         }
     }

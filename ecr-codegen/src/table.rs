@@ -89,6 +89,9 @@ pub struct MethodTable {
     pub weights: Vec<Certified>,
     /// Moment weights w_{kj} = bⱼ β_k(cⱼ), r rows of s.
     pub w: Vec<Vec<Certified>>,
+    /// Legendre moment weights ℓ_{kj} = bⱼ P̃_k(cⱼ), r rows of s: the well-conditioned moments
+    /// L_k = Σⱼ ℓ_{kj} g(Yⱼ) of ECrP (|ℓ_{kj}| ≤ bⱼ, where |w_{kj}| grows like 6^r).
+    pub lw: Vec<Vec<Certified>>,
     /// P̃ₛ, whose roots are the nodes.
     pub node_polynomial: Poly,
     /// P̃₀ … P̃_{r−1}.
@@ -197,6 +200,17 @@ impl MethodTable {
                     .collect()
             })
             .collect();
+        let legendre: Vec<Poly> = (0..r).map(shifted_legendre).collect();
+        let lw_iv: Vec<Vec<Interval>> = legendre
+            .iter()
+            .map(|pk| {
+                q.nodes
+                    .iter()
+                    .zip(&q.weights)
+                    .map(|(c, b)| b.mul(&pk.eval_interval(c, work)).rounded(work))
+                    .collect()
+            })
+            .collect();
         let (abar, bbar) = if family == Family::Rknc {
             let abar = q
                 .nodes
@@ -245,8 +259,12 @@ impl MethodTable {
                 .into_iter()
                 .map(certify_all)
                 .collect::<Option<Vec<_>>>()?,
+            lw: lw_iv
+                .into_iter()
+                .map(certify_all)
+                .collect::<Option<Vec<_>>>()?,
             node_polynomial: q.node_polynomial.clone(),
-            legendre: (0..r).map(shifted_legendre).collect(),
+            legendre,
             c: c_matrix(r),
             beta: betas.to_vec(),
             abar,
@@ -275,11 +293,17 @@ impl MethodTable {
         self.w.iter().flatten().map(|c| c.value).collect()
     }
 
+    /// Legendre moment weights as `f64`, row-major r × s.
+    pub fn lw_f64(&self) -> Vec<f64> {
+        self.lw.iter().flatten().map(|c| c.value).collect()
+    }
+
     /// Whether the rounded exact data is consistent (used by tests): every β_k is non-zero.
     pub fn is_well_formed(&self) -> bool {
         self.beta.iter().all(|b| b.degree().is_some())
             && self.nodes.len() == self.s
             && self.w.iter().all(|row| row.len() == self.s)
+            && self.lw.iter().all(|row| row.len() == self.s)
             && !self.weights.iter().any(|b| b.enclosure.lo.is_zero())
     }
 }

@@ -31,9 +31,9 @@ fn runtime_path(args: &MethodArgs) -> TokenStream {
     }
 }
 
-/// The unrolled moment accumulation m_k = 0.0 + Σ_j W[k][j] g_j (left to right, as the
-/// run-time kernel rounds).
-fn moments_body(r: usize, s: usize) -> TokenStream {
+/// The unrolled moment accumulation m_k = 0.0 + Σ_j C[k][j] g_j (left to right, as the
+/// run-time kernel rounds) over the constant table `C` (`W` or `LW`).
+fn moments_body(r: usize, s: usize, table: &Ident) -> TokenStream {
     let loads = (0..s).map(|j| {
         let gj = format_ident!("__ecr_g{}", j);
         quote!(let #gj = __ecr_g[#j * __ecr_d + __ecr_l];)
@@ -41,7 +41,7 @@ fn moments_body(r: usize, s: usize) -> TokenStream {
     let stores = (0..r).map(|k| {
         let terms = (0..s).map(|j| {
             let gj = format_ident!("__ecr_g{}", j);
-            quote!(+ Self::W[#k][#j] * #gj)
+            quote!(+ Self::#table[#k][#j] * #gj)
         });
         quote!(__ecr_m[#k * __ecr_d + __ecr_l] = 0.0 #(#terms)*;)
     });
@@ -66,7 +66,8 @@ pub fn expand(args: &MethodArgs) -> syn::Result<TokenStream> {
         .map_err(|e| syn::Error::new(Span::call_site(), e.to_string()))?;
     let rt = runtime_path(args);
     let kernel = format_ident!("{}Kernel", name);
-    let moments = moments_body(r, s);
+    let moments = moments_body(r, s, &format_ident!("W"));
+    let legendre_moments = moments_body(r, s, &format_ident!("LW"));
     let stages = (0..s).map(|j| quote!(__ecr_f(#j)?;));
     let method = match args.family {
         Family::Ec => "ECrP",
@@ -106,6 +107,11 @@ pub fn expand(args: &MethodArgs) -> syn::Result<TokenStream> {
             #[allow(clippy::identity_op, clippy::erasing_op)]
             fn moments(&self, __ecr_g: &[f64], __ecr_m: &mut [f64], __ecr_d: usize) {
                 #moments
+            }
+            #[inline(always)]
+            #[allow(clippy::identity_op, clippy::erasing_op)]
+            fn legendre_moments(&self, __ecr_g: &[f64], __ecr_m: &mut [f64], __ecr_d: usize) {
+                #legendre_moments
             }
             #[inline(always)]
             fn each_stage<F: FnMut(usize) -> #rt::Result<()>>(&self, mut __ecr_f: F) -> #rt::Result<()> {
@@ -182,6 +188,7 @@ mod tests {
         assert!(out.contains("0.2113248654051871f64"));
         // Unrolled moments: W[1][1] appears, no loop over j.
         assert!(out.contains("Self :: W [1usize] [1usize] * __ecr_g1"));
+        assert!(out.contains("Self :: LW [1usize] [1usize] * __ecr_g1"));
         assert!(out.contains("__ecr_f (1usize) ?"));
     }
 

@@ -1,15 +1,23 @@
 //! The ECrP stepper (paper eq. `PEEPCr`, DESIGN.md §2) for any r and s ≥ r.
 //!
+//! DESIGN.md §2 writes the method with the moments `G_k = Σ_j w_kj g(Y_j)` and the φ-functions.
+//! The stepper evaluates the same method regrouped by Legendre degree, which is well-conditioned
+//! for every r (the w-form loses `log₁₀ max|w_kj|` digits: 7 at r = 8, 13 at r = 12):
+//!
 //! ```text
-//! G_k = Σ_j w_kj g(Y_j),                                 k = 0..r−1
-//! Y_i = φ₀(cᵢhA) y₀ + h Σ_k cᵢ^{k+1} φ_{k+1}(cᵢhA) G_k,   i = 1..s   (fixed-point sweeps)
-//! y₁  = φ₀(hA) y₀  + h Σ_k φ_{k+1}(hA) G_k
+//! L_j = Σ_i ℓ_ji g(Y_i),   ℓ_ji = b_i P̃_j(c_i),                         j = 0..r−1
+//! Y_i = e^{cᵢhA} y₀ + h cᵢ Σ_j (2j+1) Ψ_j(cᵢ, hA) L_j,     i = 1..s   (fixed-point sweeps)
+//! y₁  = e^{hA} y₀  + h Σ_j (2j+1) Ψ_j(1, hA) L_j
 //! ```
 //!
-//! The φ-bank for the nodes and τ = 1 is built once per step size; a step allocates nothing.
+//! with the kernels `Ψ_j(τ, Z) = Σ_{k≤j} c_jk τ^k φ_{k+1}(τZ) = ∫₀¹ e^{(1−ξ)τZ} P̃_j(τξ) dξ`
+//! computed directly ([`LegendreKernels`](crate::phi::LegendreKernels)): `G_k = Σ_j (2j+1) c_jk
+//! L_j` turns one form into the other exactly.
+//!
+//! The kernel bank for the nodes and τ = 1 is built once per step size; a step allocates nothing.
 //!
 //! One algorithm, [`Stepper`], serves every form of the method. What varies is the
-//! [`Kernel`] (r, s, the nodes, and the moment accumulation G = W g: looped over run-time
+//! [`Kernel`] (r, s, the nodes, and the moment accumulation L = ℓ g: looped over run-time
 //! coefficients in [`RuntimeKernel`], unrolled over `const` coefficients in the kernels that
 //! `ecr_method!` emits) and the [`Buffers`] holding the stage state ([`VecBuffers`], allocated
 //! once; [`StaticBuffers`], fixed-size arrays inside the stepper). [`EcStepper`] is the
@@ -153,9 +161,13 @@ pub trait Kernel {
     fn s(&self) -> usize;
     /// The nodes c₁..c_s.
     fn nodes(&self) -> &[f64];
-    /// The moments m[k·d..(k+1)·d] = Σ_j w_kj g[j·d..(j+1)·d], k < r, each sum accumulated
-    /// from 0.0 in the order j = 0, 1, … (so that every kernel rounds identically).
+    /// The φ-form moments m[k·d..(k+1)·d] = Σ_j w_kj g[j·d..(j+1)·d], k < r (TCrP, RKNCrP),
+    /// each sum accumulated from 0.0 in the order j = 0, 1, … (so that every kernel rounds
+    /// identically).
     fn moments(&self, g: &[f64], m: &mut [f64], d: usize);
+    /// The Legendre moments m[k·d..(k+1)·d] = Σ_j ℓ_kj g[j·d..(j+1)·d], ℓ_kj = b_j P̃_k(c_j),
+    /// k < r (ECrP), accumulated as [`moments`](Self::moments).
+    fn legendre_moments(&self, g: &[f64], m: &mut [f64], d: usize);
     /// Calls `f(j)` for j = 0..s in order, stopping at the first error.
     fn each_stage<F: FnMut(usize) -> Result<()>>(&self, mut f: F) -> Result<()> {
         (0..self.s()).try_for_each(&mut f)
@@ -209,15 +221,22 @@ impl Kernel for RuntimeKernel {
         &self.0.nodes
     }
     fn moments(&self, g: &[f64], m: &mut [f64], d: usize) {
-        let (r, s, w) = (self.0.r, self.0.s, &self.0.w);
-        for k in 0..r {
-            let mk = &mut m[k * d..(k + 1) * d];
-            mk.fill(0.0);
-            for j in 0..s {
-                let wkj = w[k * s + j];
-                for (x, gj) in mk.iter_mut().zip(&g[j * d..(j + 1) * d]) {
-                    *x += wkj * gj;
-                }
+        accumulate(&self.0.w, self.0.r, self.0.s, g, m, d);
+    }
+    fn legendre_moments(&self, g: &[f64], m: &mut [f64], d: usize) {
+        accumulate(&self.0.lw, self.0.r, self.0.s, g, m, d);
+    }
+}
+
+/// `m_k = Σ_j w[k·s + j] g_j`, k < r, each sum from 0.0 in the order j = 0, 1, ….
+fn accumulate(w: &[f64], r: usize, s: usize, g: &[f64], m: &mut [f64], d: usize) {
+    for k in 0..r {
+        let mk = &mut m[k * d..(k + 1) * d];
+        mk.fill(0.0);
+        for j in 0..s {
+            let wkj = w[k * s + j];
+            for (x, gj) in mk.iter_mut().zip(&g[j * d..(j + 1) * d]) {
+                *x += wkj * gj;
             }
         }
     }
@@ -456,12 +475,8 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
         if predictor == Predictor::Extrapolate {
             taus.extend(kernel.nodes().iter().map(|c| 1.0 + c));
         }
-        let bank = system.linear().phi_bank(h, &taus, r)?;
-        let coef = taus
-            .iter()
-            .flat_map(|&t| (0..r).map(move |k| h * t.powi(k as i32 + 1)))
-            .collect();
-        Ok((bank, coef))
+        let bank = system.linear().kernel_bank(h, &taus, r)?;
+        Ok((bank, kernel_coefficients(h, &taus, r)))
     }
 
     /// Changes the step size (rebuilds the φ-bank: call it rarely).
@@ -591,7 +606,7 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
         let mut stages: &mut [f64] = stages;
         let mut new_stages: &mut [f64] = new_stages;
         let (residual, converged) = loop {
-            kernel.moments(g, moments, d);
+            kernel.legendre_moments(g, moments, d);
             bank.combine(0..s, y0, moments, &coef[..s * m], new_stages, ws);
             let mut diff: f64 = 0.0;
             let mut mag: f64 = 1.0;
@@ -624,7 +639,7 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                 tolerance: settings.tolerance,
             });
         }
-        kernel.moments(g, moments, d);
+        kernel.legendre_moments(g, moments, d);
         bank.combine(s..s + 1, y0, moments, &coef[s * m..(s + 1) * m], y, ws);
         if y.iter().any(|v| !v.is_finite()) {
             y.copy_from_slice(y0);
@@ -643,8 +658,9 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
     }
 
     /// Dense output of the last step: ũ(τ) = φ₀(τhA)y₀ + h Σ_k τ^{k+1} φ_{k+1}(τhA) G_k, for
-    /// τ ∈ [0, 1] (the method's continuous solution, paper eq. `EEPCr`). Builds a φ-bank for τ,
-    /// so it allocates: use it for output, not in a hot loop.
+    /// τ ∈ [0, 1] (the method's continuous solution, paper eq. `EEPCr`; evaluated in the
+    /// Legendre form of the module docs). Builds a kernel bank for τ, so it allocates: use it
+    /// for output, not in a hot loop.
     ///
     /// # Errors
     /// [`Error::InvalidInput`] for τ outside [0, 1], and whatever building the bank reports.
@@ -660,12 +676,19 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
         }
         let r = self.kernel.r();
         let mut out = vec![0.0; y0.len()];
-        let bank = self.system.linear().phi_bank(self.h, &[tau], r)?;
+        let bank = self.system.linear().kernel_bank(self.h, &[tau], r)?;
         let mut ws = bank.workspace();
-        let coef: Vec<f64> = (0..r).map(|k| self.h * tau.powi(k as i32 + 1)).collect();
+        let coef = kernel_coefficients(self.h, &[tau], r);
         bank.combine(0..1, y0, self.buf.moments(), &coef, &mut out, &mut ws);
         Ok(out)
     }
+}
+
+/// The combine coefficients of a kernel bank: `h τ (2j+1)` for each node τ and j < r.
+fn kernel_coefficients(h: f64, taus: &[f64], r: usize) -> Vec<f64> {
+    taus.iter()
+        .flat_map(|&t| (0..r).map(move |j| h * t * (2 * j + 1) as f64))
+        .collect()
 }
 
 #[cfg(test)]

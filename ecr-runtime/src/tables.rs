@@ -21,8 +21,11 @@ pub struct Coefficients {
     pub nodes: Vec<f64>,
     /// Weights bᵢ (s).
     pub weights: Vec<f64>,
-    /// Moment weights w_{kj}, row-major r × s.
+    /// Moment weights w_{kj} = b_j β_k(c_j), row-major r × s (the φ-form moments; TCrP, RKNCrP).
     pub w: Vec<f64>,
+    /// Legendre moment weights ℓ_{kj} = b_j P̃_k(c_j), row-major r × s (the moments of ECrP;
+    /// bounded by b_j, see [`crate::phi::LegendreKernels`]).
+    pub lw: Vec<f64>,
 }
 
 /// The built-in table for (r, s), if one was compiled in.
@@ -30,12 +33,13 @@ pub fn builtin(r: usize, s: usize) -> Option<Coefficients> {
     TABLES
         .iter()
         .find(|t| t.0 == r && t.1 == s)
-        .map(|&(r, s, nodes, weights, w)| Coefficients {
+        .map(|&(r, s, nodes, weights, w, lw)| Coefficients {
             r,
             s,
             nodes: nodes.to_vec(),
             weights: weights.to_vec(),
             w: w.to_vec(),
+            lw: lw.to_vec(),
         })
 }
 
@@ -80,6 +84,7 @@ pub fn coefficients_with(kind: QuadratureKind, r: usize, s: usize) -> Result<Arc
                 nodes: t.nodes_f64(),
                 weights: t.weights_f64(),
                 w: t.w_f64(),
+                lw: t.lw_f64(),
             }
         }
     };
@@ -98,12 +103,13 @@ mod tests {
     #[test]
     fn builtin_tables_are_bit_identical_to_the_generator() {
         assert!(TABLES.len() >= MAX_BUILTIN_R);
-        for &(r, s, nodes, weights, w) in TABLES {
+        for &(r, s, nodes, weights, w, lw) in TABLES {
             let t = ecr_codegen::MethodTable::generate(ecr_codegen::Family::Ec, r, s).unwrap();
             let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
             assert_eq!(bits(nodes), bits(&t.nodes_f64()), "nodes r={r} s={s}");
             assert_eq!(bits(weights), bits(&t.weights_f64()), "weights r={r} s={s}");
             assert_eq!(bits(w), bits(&t.w_f64()), "w r={r} s={s}");
+            assert_eq!(bits(lw), bits(&t.lw_f64()), "lw r={r} s={s}");
         }
     }
 

@@ -19,7 +19,7 @@ fn poly_text(p: &crate::Poly) -> Value {
     Value::Array(p.coeffs().iter().map(|a| json!(to_text(a))).collect())
 }
 
-/// JSON rendering: `family`, `r`, `s`, `nodes`, `weights`, `w` (r × s), `exact` {`legendre`,
+/// JSON rendering: `family`, `r`, `s`, `nodes`, `weights`, `w` (r × s), `lw` (r × s, Legendre moment weights), `exact` {`legendre`,
 /// `c`, `beta`, `node_polynomial`} as `"p/q"` strings (ascending coefficients), `decimal`
 /// (40-digit values of every float), and per family `abar`/`bbar` (rknc) or
 /// `phi_trig_series` (tc). Floats are printed by serde_json's shortest round-trip format.
@@ -32,6 +32,7 @@ pub fn to_json(t: &MethodTable) -> Value {
         "nodes": floats(&t.nodes),
         "weights": floats(&t.weights),
         "w": t.w.iter().map(|row| floats(row)).collect::<Vec<_>>(),
+        "lw": t.lw.iter().map(|row| floats(row)).collect::<Vec<_>>(),
         "exact": {
             "legendre": t.legendre.iter().map(poly_text).collect::<Vec<_>>(),
             "c": t.c.iter().map(|row| row.iter().map(to_text).collect::<Vec<_>>()).collect::<Vec<_>>(),
@@ -42,6 +43,7 @@ pub fn to_json(t: &MethodTable) -> Value {
             "nodes": decimals(&t.nodes),
             "weights": decimals(&t.weights),
             "w": t.w.iter().map(|row| decimals(row)).collect::<Vec<_>>(),
+            "lw": t.lw.iter().map(|row| decimals(row)).collect::<Vec<_>>(),
         },
         "certified_relative_width": "1e-60",
     });

@@ -103,6 +103,24 @@ impl fmt::Display for RustSource<'_> {
             "W",
             &w,
         )?;
+        let lw: Vec<(String, Certified)> =
+            t.lw.iter()
+                .enumerate()
+                .flat_map(|(k, row)| {
+                    row.iter().enumerate().map(move |(j, c)| {
+                        (
+                            format!("ℓ_{{{k},{}}} = b_{} P̃_{k}(c_{})", j + 1, j + 1, j + 1),
+                            c.clone(),
+                        )
+                    })
+                })
+                .collect();
+        write_array(
+            f,
+            "Legendre moment weights ℓ_{kj} = bⱼ P̃_k(cⱼ), row-major r × s.",
+            "LW",
+            &lw,
+        )?;
         if t.family == Family::Rknc {
             let abar: Vec<(String, Certified)> = t
                 .abar
@@ -144,14 +162,15 @@ pub fn rust_index(tables: &[MethodTable], command: &str) -> String {
         out.push('\n');
     }
     out.push_str(
-        "/// Every built-in table as (r, s, nodes, weights, row-major moment weights w).\n\
+        "/// Every built-in table as (r, s, nodes, weights, row-major moment weights w, row-major\n\
+         /// Legendre moment weights ℓ).\n\
          #[allow(clippy::type_complexity)]\n\
-         pub static TABLES: &[(usize, usize, &[f64], &[f64], &[f64])] = &[\n",
+         pub static TABLES: &[(usize, usize, &[f64], &[f64], &[f64], &[f64])] = &[\n",
     );
     for t in tables {
         let m = t.ident();
         out.push_str(&format!(
-            "    ({}, {}, &{m}::NODES, &{m}::WEIGHTS, &{m}::W),\n",
+            "    ({}, {}, &{m}::NODES, &{m}::WEIGHTS, &{m}::W, &{m}::LW),\n",
             t.r, t.s
         ));
     }

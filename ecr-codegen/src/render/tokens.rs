@@ -15,13 +15,17 @@ fn provenance(label: &str, v: &[Certified]) -> String {
 }
 
 impl ToTokens for MethodTable {
-    /// Emits `pub const R, S, NODES: [f64; S], WEIGHTS: [f64; S], W: [[f64; S]; R]` (plus
+    /// Emits `pub const R, S, NODES: [f64; S], WEIGHTS: [f64; S], W, LW: [[f64; S]; R]` (plus
     /// `ABAR: [[f64; S]; S]`, `BBAR: [f64; S]` for RKNC), with provenance in doc attributes.
     fn to_tokens(&self, out: &mut TokenStream) {
         let (r, s) = (self.r, self.s);
         let nodes = lits(&self.nodes);
         let weights = lits(&self.weights);
         let w_rows = self.w.iter().map(|row| {
+            let l = lits(row);
+            quote!([#(#l),*])
+        });
+        let lw_rows = self.lw.iter().map(|row| {
             let l = lits(row);
             quote!([#(#l),*])
         });
@@ -49,6 +53,8 @@ impl ToTokens for MethodTable {
             pub const WEIGHTS: [f64; #s] = [#(#weights),*];
             #[doc = #doc_w]
             pub const W: [[f64; #s]; #r] = [#(#w_rows),*];
+            /// Legendre moment weights ℓ_kj = b_j P̃_k(c_j) (the moments of ECrP; |ℓ_kj| ≤ b_j).
+            pub const LW: [[f64; #s]; #r] = [#(#lw_rows),*];
         });
         if self.family == Family::Rknc {
             let rows = self.abar.iter().map(|row| {

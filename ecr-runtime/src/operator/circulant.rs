@@ -9,9 +9,9 @@ use rustfft::{Fft, FftPlanner};
 
 use super::skew::{SkewGenerator, SpectralBasis};
 use super::{
-    LinearOperator, PhiBank, apply_shape, check_bank_args, check_bank_values, combine_shape,
+    LinearOperator, NodeFunctions, PhiBank, apply_shape, check_bank_args, check_bank_values,
+    combine_shape,
 };
-use crate::phi::phi_complex;
 use crate::{Error, Result};
 
 /// Relative asymmetry of the first column tolerated by [`SkewGenerator::real_spectrum`].
@@ -193,6 +193,7 @@ impl<B: SpectralBasis> SpectralBank<B> {
         h: f64,
         taus: &[f64],
         p: usize,
+        f: NodeFunctions,
     ) -> Result<Self> {
         check_bank_args(h, taus)?;
         let n = lambda.len();
@@ -201,7 +202,7 @@ impl<B: SpectralBasis> SpectralBank<B> {
         for (i, tau) in taus.iter().enumerate() {
             let th = tau * h;
             for (mode, l) in lambda.iter().enumerate() {
-                phi_complex(Complex64::new(th * l.re, th * l.im), &mut buf);
+                f.complex(i, Complex64::new(th * l.re, th * l.im), &mut buf);
                 for (k, v) in buf.iter().enumerate() {
                     phis[(i * (p + 1) + k) * n + mode] = *v;
                 }
@@ -259,7 +260,12 @@ impl LinearOperator for Circulant {
     }
 
     fn phi_bank(&self, h: f64, taus: &[f64], p: usize) -> Result<CirculantBank> {
-        SpectralBank::build(&self.basis, &self.lambda, h, taus, p)
+        SpectralBank::build(&self.basis, &self.lambda, h, taus, p, NodeFunctions::phi())
+    }
+
+    fn kernel_bank(&self, h: f64, taus: &[f64], n: usize) -> Result<CirculantBank> {
+        let f = NodeFunctions::legendre(taus, n);
+        SpectralBank::build(&self.basis, &self.lambda, h, taus, n, f)
     }
 }
 

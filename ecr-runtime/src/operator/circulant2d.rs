@@ -7,9 +7,9 @@ use std::sync::{Arc, Mutex};
 use num_complex::Complex64;
 use rustfft::{Fft, FftPlanner};
 
-use super::LinearOperator;
 use super::circulant::{SpectralBank, SpectralWorkspace, spectral_apply};
 use super::skew::{SkewGenerator, SpectralBasis};
+use super::{LinearOperator, NodeFunctions};
 use crate::{Error, Result};
 
 /// Relative asymmetry of the first column tolerated by [`SkewGenerator::real_spectrum`].
@@ -285,7 +285,12 @@ impl LinearOperator for Circulant2d {
     }
 
     fn phi_bank(&self, h: f64, taus: &[f64], p: usize) -> Result<Circulant2dBank> {
-        SpectralBank::build(&self.basis, &self.lambda, h, taus, p)
+        SpectralBank::build(&self.basis, &self.lambda, h, taus, p, NodeFunctions::phi())
+    }
+
+    fn kernel_bank(&self, h: f64, taus: &[f64], n: usize) -> Result<Circulant2dBank> {
+        let f = NodeFunctions::legendre(taus, n);
+        SpectralBank::build(&self.basis, &self.lambda, h, taus, n, f)
     }
 }
 

@@ -9,11 +9,10 @@ use num_complex::Complex64;
 use super::simple::diagonal_block;
 use super::skew::{SkewGenerator, SpectralBasis};
 use super::{
-    LinearOperator, PhiBank, apply_shape, check_bank_args, check_bank_values, combine_shape,
+    LinearOperator, NodeFunctions, PhiBank, apply_shape, check_bank_args, check_bank_values,
+    combine_shape,
 };
-use crate::phi::{
-    check_symmetric, phi_dense, phi_dense_static, phi_real, symmetric_eigen, validate_matrix,
-};
+use crate::phi::{check_symmetric, symmetric_eigen, validate_matrix};
 use crate::{Error, Result};
 
 /// `y = M x` (or `y = α M x + β y`) on slices, without allocation.
@@ -113,11 +112,21 @@ impl LinearOperator for Dense {
     }
 
     fn phi_bank(&self, h: f64, taus: &[f64], p: usize) -> Result<DenseBank> {
+        self.bank(h, taus, p, NodeFunctions::phi())
+    }
+
+    fn kernel_bank(&self, h: f64, taus: &[f64], n: usize) -> Result<DenseBank> {
+        self.bank(h, taus, n, NodeFunctions::legendre(taus, n))
+    }
+}
+
+impl Dense {
+    fn bank(&self, h: f64, taus: &[f64], p: usize, f: NodeFunctions) -> Result<DenseBank> {
         check_bank_args(h, taus)?;
         let mut phis = Vec::with_capacity(taus.len() * (p + 1));
-        for tau in taus {
+        for (i, tau) in taus.iter().enumerate() {
             let th = tau * h;
-            phis.extend(phi_dense(&(&self.a * th), p)?);
+            phis.extend(f.dense(i, &(&self.a * th), p)?);
         }
         Ok(DenseBank {
             dim: self.a.nrows(),
@@ -249,11 +258,26 @@ impl<const D: usize> LinearOperator for DenseStatic<D> {
     }
 
     fn phi_bank(&self, h: f64, taus: &[f64], p: usize) -> Result<DenseStaticBank<D>> {
+        self.bank(h, taus, p, NodeFunctions::phi())
+    }
+
+    fn kernel_bank(&self, h: f64, taus: &[f64], n: usize) -> Result<DenseStaticBank<D>> {
+        self.bank(h, taus, n, NodeFunctions::legendre(taus, n))
+    }
+}
+
+impl<const D: usize> DenseStatic<D> {
+    fn bank(&self, h: f64, taus: &[f64], p: usize, f: NodeFunctions) -> Result<DenseStaticBank<D>> {
         check_bank_args(h, taus)?;
         let mut phis = Vec::with_capacity(taus.len() * (p + 1));
-        for tau in taus {
+        for (i, tau) in taus.iter().enumerate() {
             let th = tau * h;
-            phis.extend(phi_dense_static(&(self.a * th), p)?);
+            let x = DMatrix::from_column_slice(D, D, (self.a * th).as_slice());
+            phis.extend(
+                f.dense(i, &x, p)?
+                    .iter()
+                    .map(|m| SMatrix::<f64, D, D>::from_column_slice(m.as_slice())),
+            );
         }
         Ok(DenseStaticBank {
             len: taus.len(),
@@ -397,6 +421,16 @@ impl LinearOperator for Symmetric {
     }
 
     fn phi_bank(&self, h: f64, taus: &[f64], p: usize) -> Result<SymmetricBank> {
+        self.bank(h, taus, p, NodeFunctions::phi())
+    }
+
+    fn kernel_bank(&self, h: f64, taus: &[f64], n: usize) -> Result<SymmetricBank> {
+        self.bank(h, taus, n, NodeFunctions::legendre(taus, n))
+    }
+}
+
+impl Symmetric {
+    fn bank(&self, h: f64, taus: &[f64], p: usize, f: NodeFunctions) -> Result<SymmetricBank> {
         check_bank_args(h, taus)?;
         let d = self.lambda.len();
         let mut phis = vec![0.0; taus.len() * (p + 1) * d];
@@ -404,7 +438,7 @@ impl LinearOperator for Symmetric {
         for (i, tau) in taus.iter().enumerate() {
             let th = tau * h;
             for (t, l) in self.lambda.iter().enumerate() {
-                phi_real(th * l, &mut buf);
+                f.real(i, th * l, &mut buf);
                 for (k, v) in buf.iter().enumerate() {
                     phis[(i * (p + 1) + k) * d + t] = *v;
                 }

@@ -84,6 +84,76 @@ pub trait LinearOperator {
     /// τ is NaN or infinite, [`Error::Numerical`] if a φ-function overflows (eigenvalues far
     /// in the right half-plane).
     fn phi_bank(&self, h: f64, taus: &[f64], p: usize) -> Result<Self::Bank>;
+
+    /// The Legendre kernels of ECrP in the same bank type: slot 0 holds `e^{τ_i hA}` and slot
+    /// `j + 1` holds `Ψ_j(τ_i, hA) = ∫₀¹ e^{(1−ξ)τ_i hA} P̃_j(τ_i ξ) dξ`, `j < n` (see
+    /// [`LegendreKernels`](crate::phi::LegendreKernels)). With the Legendre moments `L_j` the
+    /// stage is `Y_i = e^{τ_i hA} y₀ + h τ_i Σ_j (2j+1) Ψ_j(τ_i, hA) L_j`: one
+    /// [`PhiBank::combine`] with `coef[j] = h τ_i (2j+1)`, and no cancellation for any r.
+    /// [`PhiBank::apply`] on such a bank applies these kernels, and [`PhiBank::p`] is n.
+    ///
+    /// # Errors
+    /// As [`phi_bank`](Self::phi_bank).
+    fn kernel_bank(&self, h: f64, taus: &[f64], n: usize) -> Result<Self::Bank>;
+}
+
+/// The functions a bank holds at each node: φ₀..φ_p, or `e^x` and the Legendre kernels.
+pub(crate) struct NodeFunctions {
+    legendre: Option<(crate::phi::LegendreKernels, Vec<Vec<f64>>)>,
+}
+
+impl NodeFunctions {
+    /// φ₀..φ_p.
+    pub(crate) fn phi() -> Self {
+        NodeFunctions { legendre: None }
+    }
+
+    /// `e^x`, `Ψ_0(τ_i, ·) … Ψ_{n−1}(τ_i, ·)` for the nodes `taus`.
+    pub(crate) fn legendre(taus: &[f64], n: usize) -> Self {
+        let k = crate::phi::LegendreKernels::new(n);
+        let maps = taus.iter().map(|&t| k.node_map(t)).collect();
+        NodeFunctions {
+            legendre: Some((k, maps)),
+        }
+    }
+
+    /// `out` = the functions at `x = τ_i h λ` (`out.len() = p + 1`).
+    pub(crate) fn real(&self, i: usize, x: f64, out: &mut [f64]) {
+        match &self.legendre {
+            None => crate::phi::phi_real(x, out),
+            Some((k, maps)) => k.row_real(&maps[i], x, out),
+        }
+    }
+
+    /// As [`real`](Self::real) for complex `z = τ_i h λ`.
+    pub(crate) fn complex(
+        &self,
+        i: usize,
+        z: num_complex::Complex64,
+        out: &mut [num_complex::Complex64],
+    ) {
+        match &self.legendre {
+            None => crate::phi::phi_complex(z, out),
+            Some((k, maps)) => k.row_complex(&maps[i], z, out),
+        }
+    }
+
+    /// The `p + 1` matrix functions at `X = τ_i h A`.
+    pub(crate) fn dense(
+        &self,
+        i: usize,
+        x: &nalgebra::DMatrix<f64>,
+        p: usize,
+    ) -> Result<Vec<nalgebra::DMatrix<f64>>> {
+        match &self.legendre {
+            None => crate::phi::phi_dense(x, p),
+            Some((k, maps)) => {
+                let mut out = crate::phi::phi_dense(x, 0)?;
+                out.extend(k.rows_dense(&maps[i], x)?);
+                Ok(out)
+            }
+        }
+    }
 }
 
 /// The operators `φ_k(τ_i h A)`, `i < len()`, `k ≤ p()`, for one step size `h`.

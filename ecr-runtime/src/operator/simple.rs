@@ -5,9 +5,9 @@ use std::ops::Range;
 use nalgebra::DVector;
 
 use super::{
-    LinearOperator, PhiBank, apply_shape, check_bank_args, check_bank_values, combine_shape,
+    LinearOperator, NodeFunctions, PhiBank, apply_shape, check_bank_args, check_bank_values,
+    combine_shape,
 };
-use crate::phi::{inv_factorial, phi_real};
 use crate::{Error, Result};
 
 /// `A = 0` in dimension `dim`: `φ_k(τhA) = I/k!` (the method reduces to HBVM, DESIGN.md §2).
@@ -23,12 +23,15 @@ impl Zero {
     }
 }
 
-/// The (trivial) φ-bank of [`Zero`]: `φ_k = I/k!` for every node.
+/// The φ-bank of [`Zero`]: `φ_k = I/k!` for every node (a Legendre-kernel bank holds the
+/// numbers `Ψ_j(τ_i, 0) = ∫₀¹ P̃_j(τ_i ξ) dξ`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ZeroBank {
     dim: usize,
     len: usize,
     p: usize,
+    /// `values[i (p+1) + k]`: the multiple of the identity in slot k at node i.
+    values: Vec<f64>,
 }
 
 impl LinearOperator for Zero {
@@ -44,11 +47,26 @@ impl LinearOperator for Zero {
     }
 
     fn phi_bank(&self, h: f64, taus: &[f64], p: usize) -> Result<ZeroBank> {
+        self.bank(h, taus, p, NodeFunctions::phi())
+    }
+
+    fn kernel_bank(&self, h: f64, taus: &[f64], n: usize) -> Result<ZeroBank> {
+        self.bank(h, taus, n, NodeFunctions::legendre(taus, n))
+    }
+}
+
+impl Zero {
+    fn bank(&self, h: f64, taus: &[f64], p: usize, f: NodeFunctions) -> Result<ZeroBank> {
         check_bank_args(h, taus)?;
+        let mut values = vec![0.0; taus.len() * (p + 1)];
+        for (i, row) in values.chunks_exact_mut(p + 1).enumerate() {
+            f.real(i, 0.0, row);
+        }
         Ok(ZeroBank {
             dim: self.dim,
             len: taus.len(),
             p,
+            values,
         })
     }
 }
@@ -67,7 +85,7 @@ impl PhiBank for ZeroBank {
     }
     fn workspace(&self) {}
 
-    /// `out_j = y0 + Σ_k coef[j·m + k]/(k+1)! · g_k`.
+    /// `out_j = y0 + Σ_k coef[j·m + k] v_{i,k+1} · g_k` (`v_{i,k} = 1/k!` in a φ-bank).
     fn combine(
         &self,
         indices: Range<usize>,
@@ -82,10 +100,11 @@ impl PhiBank for ZeroBank {
         if d == 0 {
             return;
         }
-        for (j, o) in out.chunks_exact_mut(d).enumerate() {
+        for ((j, i), o) in indices.enumerate().zip(out.chunks_exact_mut(d)) {
+            let v = &self.values[i * (self.p + 1)..(i + 1) * (self.p + 1)];
             o.copy_from_slice(y0);
             for (k, gk) in g.chunks_exact(d).enumerate() {
-                let c = coef[j * m + k] * inv_factorial(k + 1);
+                let c = coef[j * m + k] * v[k + 1];
                 for (ot, gt) in o.iter_mut().zip(gk) {
                     *ot += c * gt;
                 }
@@ -95,7 +114,7 @@ impl PhiBank for ZeroBank {
 
     fn apply(&self, i: usize, k: usize, x: &[f64], out: &mut [f64], _ws: &mut ()) {
         apply_shape(self.dim, self.len, self.p, i, k, x, out);
-        let c = inv_factorial(k);
+        let c = self.values[i * (self.p + 1) + k];
         for (o, xv) in out.iter_mut().zip(x) {
             *o = c * xv;
         }
@@ -153,10 +172,20 @@ impl LinearOperator for Scalar {
     }
 
     fn phi_bank(&self, h: f64, taus: &[f64], p: usize) -> Result<ScalarBank> {
+        self.bank(h, taus, p, NodeFunctions::phi())
+    }
+
+    fn kernel_bank(&self, h: f64, taus: &[f64], n: usize) -> Result<ScalarBank> {
+        self.bank(h, taus, n, NodeFunctions::legendre(taus, n))
+    }
+}
+
+impl Scalar {
+    fn bank(&self, h: f64, taus: &[f64], p: usize, f: NodeFunctions) -> Result<ScalarBank> {
         check_bank_args(h, taus)?;
         let mut phis = vec![0.0; taus.len() * (p + 1)];
-        for (tau, row) in taus.iter().zip(phis.chunks_exact_mut(p + 1)) {
-            phi_real(tau * h * self.a, row);
+        for (i, (tau, row)) in taus.iter().zip(phis.chunks_exact_mut(p + 1)).enumerate() {
+            f.real(i, tau * h * self.a, row);
         }
         check_bank_values(phis.iter().copied())?;
         Ok(ScalarBank {
@@ -277,6 +306,16 @@ impl LinearOperator for Diagonal {
     }
 
     fn phi_bank(&self, h: f64, taus: &[f64], p: usize) -> Result<DiagonalBank> {
+        self.bank(h, taus, p, NodeFunctions::phi())
+    }
+
+    fn kernel_bank(&self, h: f64, taus: &[f64], n: usize) -> Result<DiagonalBank> {
+        self.bank(h, taus, n, NodeFunctions::legendre(taus, n))
+    }
+}
+
+impl Diagonal {
+    fn bank(&self, h: f64, taus: &[f64], p: usize, f: NodeFunctions) -> Result<DiagonalBank> {
         check_bank_args(h, taus)?;
         let d = self.diag.len();
         let mut phis = vec![0.0; taus.len() * (p + 1) * d];
@@ -284,7 +323,7 @@ impl LinearOperator for Diagonal {
         for (i, tau) in taus.iter().enumerate() {
             let th = tau * h;
             for (t, dv) in self.diag.iter().enumerate() {
-                phi_real(th * dv, &mut buf);
+                f.real(i, th * dv, &mut buf);
                 for (k, v) in buf.iter().enumerate() {
                     phis[(i * (p + 1) + k) * d + t] = *v;
                 }

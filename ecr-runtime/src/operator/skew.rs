@@ -6,10 +6,10 @@ use num_complex::Complex64;
 
 use super::circulant::spectral_block;
 use super::{
-    LinearOperator, PhiBank, apply_shape, check_bank_args, check_bank_values, combine_shape,
+    LinearOperator, NodeFunctions, PhiBank, apply_shape, check_bank_args, check_bank_values,
+    combine_shape,
 };
 use crate::Result;
-use crate::phi::phi_complex;
 
 /// A unitary change of basis `V` acting on complex vectors of length n, in which a
 /// [`SkewGenerator`] is diagonal.
@@ -119,6 +119,22 @@ impl<C: SkewGenerator> LinearOperator for SkewPair<C> {
     }
 
     fn phi_bank(&self, h: f64, taus: &[f64], p: usize) -> Result<Self::Bank> {
+        self.bank(h, taus, p, NodeFunctions::phi())
+    }
+
+    fn kernel_bank(&self, h: f64, taus: &[f64], n: usize) -> Result<Self::Bank> {
+        self.bank(h, taus, n, NodeFunctions::legendre(taus, n))
+    }
+}
+
+impl<C: SkewGenerator> SkewPair<C> {
+    fn bank(
+        &self,
+        h: f64,
+        taus: &[f64],
+        p: usize,
+        f: NodeFunctions,
+    ) -> Result<SkewPairBank<C::Basis>> {
         check_bank_args(h, taus)?;
         let n = self.lambda.len();
         let mut phis = vec![Complex64::new(0.0, 0.0); taus.len() * (p + 1) * n];
@@ -126,7 +142,7 @@ impl<C: SkewGenerator> LinearOperator for SkewPair<C> {
         for (i, tau) in taus.iter().enumerate() {
             let th = tau * h;
             for (mode, l) in self.lambda.iter().enumerate() {
-                phi_complex(Complex64::new(0.0, th * l), &mut buf);
+                f.complex(i, Complex64::new(0.0, th * l), &mut buf);
                 for (k, v) in buf.iter().enumerate() {
                     phis[(i * (p + 1) + k) * n + mode] = *v;
                 }

@@ -17,14 +17,14 @@ const SYMMETRY_TOL: f64 = 1e-12;
 
 /// `y += a x` entrywise.
 #[inline]
-fn axpy(y: &mut DMatrix<f64>, a: f64, x: &DMatrix<f64>) {
+pub(super) fn axpy(y: &mut DMatrix<f64>, a: f64, x: &DMatrix<f64>) {
     for (yv, xv) in y.as_mut_slice().iter_mut().zip(x.as_slice()) {
         *yv += a * xv;
     }
 }
 
 /// The 1-norm (maximum absolute column sum).
-fn norm1(a: &DMatrix<f64>) -> f64 {
+pub(super) fn norm1(a: &DMatrix<f64>) -> f64 {
     a.column_iter()
         .map(|c| c.iter().map(|v| v.abs()).sum::<f64>())
         .fold(0.0, f64::max)

@@ -32,9 +32,11 @@
 //!   `φ_k(A) = Q φ_k(Λ) Qᵀ` with the scalar functions.
 
 mod dense;
+mod legendre;
 mod scalar;
 
 pub use dense::{phi_dense, phi_dense_static, phi_symmetric};
+pub use legendre::LegendreKernels;
 pub use scalar::{phi_complex, phi_diagonal, phi_real, phi_trig};
 
 pub(crate) use dense::{check_symmetric, symmetric_eigen, validate as validate_matrix};

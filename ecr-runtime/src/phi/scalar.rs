@@ -31,13 +31,17 @@ const TAYLOR_TOL: f64 = 3.469446951953614e-18;
 const STACK: usize = 40;
 
 /// The arithmetic the φ engine needs; implemented for `f64` and `Complex64`.
-trait Field: Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> {
+pub(super) trait Field:
+    Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self>
+{
     fn real(x: f64) -> Self;
     fn nan() -> Self;
     fn modulus(self) -> f64;
     fn re_part(self) -> f64;
     fn has_nan(self) -> bool;
     fn all_finite(self) -> bool;
+    /// The imaginary part is finite (always, for `f64`).
+    fn im_finite(self) -> bool;
     /// `self / d`, without spurious overflow (Smith's algorithm for complex numbers).
     fn quot(self, d: Self) -> Self;
     fn quot_real(self, a: f64) -> Self;
@@ -98,6 +102,10 @@ impl Field for f64 {
         self.is_finite()
     }
     #[inline]
+    fn im_finite(self) -> bool {
+        true
+    }
+    #[inline]
     fn quot(self, d: Self) -> Self {
         self / d
     }
@@ -156,6 +164,10 @@ impl Field for Complex64 {
     #[inline]
     fn all_finite(self) -> bool {
         self.re.is_finite() && self.im.is_finite()
+    }
+    #[inline]
+    fn im_finite(self) -> bool {
+        self.im.is_finite()
     }
     #[inline]
     fn quot(self, d: Self) -> Self {

@@ -6,7 +6,8 @@
 //! exp/sin/cos.
 #![allow(dead_code, clippy::needless_range_loop)]
 
-use astro_float::{BigFloat, Consts, RoundingMode, Sign};
+pub use astro_float::BigFloat;
+use astro_float::{Consts, RoundingMode, Sign};
 use num_complex::Complex64;
 
 const RM: RoundingMode = RoundingMode::ToEven;
