@@ -12,8 +12,32 @@ use super::{
     LinearOperator, NodeFunctions, PhiBank, apply_shape, check_bank_args, check_bank_values,
     combine_shape,
 };
-use crate::phi::{check_symmetric, symmetric_eigen, validate_matrix};
+use crate::phi::{check_symmetric, symmetric_eigen, two_prod, two_sum, validate_matrix};
 use crate::{Error, Result};
+
+/// `hi + lo = (Mh + Ml) x` in double-double (Dot2 on the high part), without allocation.
+fn matvec_dd<R: nalgebra::Dim, C: nalgebra::Dim, S: nalgebra::RawStorage<f64, R, C>>(
+    mh: &nalgebra::Matrix<f64, R, C, S>,
+    ml: &nalgebra::Matrix<f64, R, C, S>,
+    x: &[f64],
+    hi: &mut [f64],
+    lo: &mut [f64],
+) {
+    let (rows, cols) = mh.shape();
+    assert!(x.len() == cols && hi.len() == rows && lo.len() == rows);
+    for r in 0..rows {
+        let (mut s, mut c) = (0.0, 0.0);
+        for (k, xv) in x.iter().enumerate() {
+            let (p, e) = two_prod(mh[(r, k)], *xv);
+            let (t, q) = two_sum(s, p);
+            s = t;
+            c += q + e + ml[(r, k)] * xv;
+        }
+        let (h, l) = two_sum(s, c);
+        hi[r] = h;
+        lo[r] = l;
+    }
+}
 
 /// `y = M x` (or `y = α M x + β y`) on slices, without allocation.
 #[inline]
@@ -82,6 +106,9 @@ pub struct DenseBank {
     p: usize,
     /// `phis[i (p+1) + k] = φ_k(τ_i h A)`.
     phis: Vec<DMatrix<f64>>,
+    /// Low parts of the propagators carried in double-double (`e^{τ_i hA} = phis[i (p+1)] +
+    /// lo[i]`), see [`PhiBank::propagate_dd`].
+    lo: Vec<Option<DMatrix<f64>>>,
 }
 
 impl DenseBank {
@@ -124,15 +151,19 @@ impl Dense {
     fn bank(&self, h: f64, taus: &[f64], p: usize, f: NodeFunctions) -> Result<DenseBank> {
         check_bank_args(h, taus)?;
         let mut phis = Vec::with_capacity(taus.len() * (p + 1));
+        let mut lo = Vec::with_capacity(taus.len());
         for (i, tau) in taus.iter().enumerate() {
             let th = tau * h;
-            phis.extend(f.dense(i, &(&self.a * th), p)?);
+            let (m, l) = f.dense(i, &(&self.a * th), p)?;
+            phis.extend(m);
+            lo.push(l);
         }
         Ok(DenseBank {
             dim: self.a.nrows(),
             len: taus.len(),
             p,
             phis,
+            lo,
         })
     }
 }
@@ -171,6 +202,16 @@ impl PhiBank for DenseBank {
             for (k, gk) in g.chunks_exact(d).enumerate() {
                 gemv(o, coef[j * m + k], &self.phis[base + k + 1], gk, 1.0);
             }
+        }
+    }
+
+    fn propagate_dd(&self, i: usize, y0: &[f64], hi: &mut [f64], lo: &mut [f64]) -> bool {
+        match &self.lo[i] {
+            Some(l) => {
+                matvec_dd(&self.phis[i * (self.p + 1)], l, y0, hi, lo);
+                true
+            }
+            None => false,
         }
     }
 
@@ -229,6 +270,8 @@ pub struct DenseStaticBank<const D: usize> {
     p: usize,
     /// `phis[i (p+1) + k] = φ_k(τ_i h A)`.
     phis: Vec<SMatrix<f64, D, D>>,
+    /// Low parts of the propagators carried in double-double, as in [`DenseBank`].
+    lo: Vec<Option<SMatrix<f64, D, D>>>,
 }
 
 impl<const D: usize> DenseStaticBank<D> {
@@ -270,19 +313,20 @@ impl<const D: usize> DenseStatic<D> {
     fn bank(&self, h: f64, taus: &[f64], p: usize, f: NodeFunctions) -> Result<DenseStaticBank<D>> {
         check_bank_args(h, taus)?;
         let mut phis = Vec::with_capacity(taus.len() * (p + 1));
+        let mut lo = Vec::with_capacity(taus.len());
+        let to_static = |m: &DMatrix<f64>| SMatrix::<f64, D, D>::from_column_slice(m.as_slice());
         for (i, tau) in taus.iter().enumerate() {
             let th = tau * h;
             let x = DMatrix::from_column_slice(D, D, (self.a * th).as_slice());
-            phis.extend(
-                f.dense(i, &x, p)?
-                    .iter()
-                    .map(|m| SMatrix::<f64, D, D>::from_column_slice(m.as_slice())),
-            );
+            let (m, l) = f.dense(i, &x, p)?;
+            phis.extend(m.iter().map(to_static));
+            lo.push(l.as_ref().map(to_static));
         }
         Ok(DenseStaticBank {
             len: taus.len(),
             p,
             phis,
+            lo,
         })
     }
 }
@@ -323,6 +367,16 @@ impl<const D: usize> PhiBank for DenseStaticBank<D> {
                 acc.gemv(coef[j * m + k], &self.phis[base + k + 1], &gv, 1.0);
             }
             o.copy_from_slice(acc.as_slice());
+        }
+    }
+
+    fn propagate_dd(&self, i: usize, y0: &[f64], hi: &mut [f64], lo: &mut [f64]) -> bool {
+        match &self.lo[i] {
+            Some(l) => {
+                matvec_dd(&self.phis[i * (self.p + 1)], l, y0, hi, lo);
+                true
+            }
+            None => false,
         }
     }
 

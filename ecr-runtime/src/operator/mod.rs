@@ -100,12 +100,22 @@ pub trait LinearOperator {
 /// The functions a bank holds at each node: φ₀..φ_p, or `e^x` and the Legendre kernels.
 pub(crate) struct NodeFunctions {
     legendre: Option<(crate::phi::LegendreKernels, Vec<Vec<f64>>)>,
+    /// The nodes (Legendre banks only).
+    taus: Vec<f64>,
 }
+
+/// Dense operators up to this dimension carry the step's propagator `e^{hA}` in double-double
+/// (high and low part) in their kernel banks: O(d³) more set-up, O(d²) per step
+/// ([`PhiBank::propagate_dd`]).
+pub const DD_PROPAGATOR_MAX_DIM: usize = 256;
 
 impl NodeFunctions {
     /// φ₀..φ_p.
     pub(crate) fn phi() -> Self {
-        NodeFunctions { legendre: None }
+        NodeFunctions {
+            legendre: None,
+            taus: Vec::new(),
+        }
     }
 
     /// `e^x`, `Ψ_0(τ_i, ·) … Ψ_{n−1}(τ_i, ·)` for the nodes `taus`.
@@ -114,6 +124,7 @@ impl NodeFunctions {
         let maps = taus.iter().map(|&t| k.node_map(t)).collect();
         NodeFunctions {
             legendre: Some((k, maps)),
+            taus: taus.to_vec(),
         }
     }
 
@@ -138,19 +149,27 @@ impl NodeFunctions {
         }
     }
 
-    /// The `p + 1` matrix functions at `X = τ_i h A`.
+    /// The `p + 1` matrix functions at `X = τ_i h A`, and the low part of the propagator
+    /// `e^X = out[0] + lo` where it is carried in double-double: at τ = 1 in a Legendre bank,
+    /// for `d ≤ DD_PROPAGATOR_MAX_DIM`.
+    #[allow(clippy::type_complexity)]
     pub(crate) fn dense(
         &self,
         i: usize,
         x: &nalgebra::DMatrix<f64>,
         p: usize,
-    ) -> Result<Vec<nalgebra::DMatrix<f64>>> {
+    ) -> Result<(Vec<nalgebra::DMatrix<f64>>, Option<nalgebra::DMatrix<f64>>)> {
         match &self.legendre {
-            None => crate::phi::phi_dense(x, p),
+            None => Ok((crate::phi::phi_dense(x, p)?, None)),
             Some((k, maps)) => {
-                let mut out = crate::phi::phi_dense(x, 0)?;
+                let (mut out, lo) = if self.taus[i] == 1.0 && x.nrows() <= DD_PROPAGATOR_MAX_DIM {
+                    let (hi, lo) = crate::phi::expm_dd(x)?;
+                    (vec![hi], Some(lo))
+                } else {
+                    (crate::phi::phi_dense(x, 0)?, None)
+                };
                 out.extend(k.rows_dense(&maps[i], x)?);
-                Ok(out)
+                Ok((out, lo))
             }
         }
     }
@@ -220,6 +239,17 @@ pub trait PhiBank {
         out: &[f64],
     ) -> Result<usize> {
         combine_shape_checked(self.dim(), self.len(), self.p(), indices, y0, g, coef, out)
+    }
+
+    /// `hi + lo = e^{τ_i hA} y0` with the propagator and the product in double-double, if this
+    /// bank carries the propagator at node i that way (dense kernel banks at τ = 1, see
+    /// [`DD_PROPAGATOR_MAX_DIM`]); otherwise `false`, outputs untouched. Does not allocate.
+    ///
+    /// # Panics
+    /// If `i ≥ len()` or a slice length differs from `d`.
+    fn propagate_dd(&self, i: usize, y0: &[f64], hi: &mut [f64], lo: &mut [f64]) -> bool {
+        let _ = (i, y0, hi, lo);
+        false
     }
 
     /// `out = φ_k(τ_i h A) x`. Does not allocate.

@@ -39,7 +39,9 @@ pub use dense::{phi_dense, phi_dense_static, phi_symmetric};
 pub use legendre::LegendreKernels;
 pub use scalar::{phi_complex, phi_diagonal, phi_real, phi_trig};
 
-pub(crate) use dense::{check_symmetric, symmetric_eigen, validate as validate_matrix};
+pub(crate) use dense::{
+    check_symmetric, expm_dd, symmetric_eigen, two_prod, two_sum, validate as validate_matrix,
+};
 
 /// `1/k!` for `k = 0..=32`, correctly rounded to `f64`.
 ///
