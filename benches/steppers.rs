@@ -43,7 +43,10 @@ fn bench_problem(
     let s = 3;
     let mut taus = Ec3Kernel::NODES.to_vec();
     taus.push(1.0);
-    let bank = DenseStatic::new(sa).unwrap().kernel_bank(H, &taus, 3).unwrap();
+    let bank = DenseStatic::new(sa)
+        .unwrap()
+        .kernel_bank(H, &taus, 3)
+        .unwrap();
     #[allow(clippy::let_unit_value)] // DenseStatic needs no workspace; generic code does
     let mut ws = bank.workspace();
     let coef = [H; 12];

@@ -6,26 +6,38 @@
 //! round-off that repeats every step. The drift is the least-squares slope of the relative
 //! energy error (sampled every 1000 steps) against the step number.
 //!
-//! Run: `cargo run --release --example long_run -- [STEPS] [R] [H]` (defaults 1e7, 3, 0.01;
-//! about a minute per problem at 1e7 steps on one core).
+//! Run: `cargo run --release --example long_run -- [STEPS] [R] [H] [TOL]` (defaults 1e7, 3,
+//! 0.01 and the stage solver's default tolerance; 10–20 s per problem at 1e7 steps).
 
 use ecr::runtime::integrate::{IntegrateOptions, integrate};
 use ecr::runtime::problems::{Duffing, Wind};
-use ecr::runtime::stepper::EcStepper;
+use ecr::runtime::stepper::{EcStepper, SolverSettings};
 use ecr::runtime::system::System;
 use std::time::Instant;
 
-/// Runs `steps` steps of ECrP and prints the energy statistics.
+/// What to run: ECrP with r, h, the number of steps and the solver settings.
+struct Config {
+    r: usize,
+    h: f64,
+    steps: usize,
+    settings: SolverSettings,
+}
+
+/// Runs the configured steps of ECrP and prints the energy statistics.
 fn run<S: System>(
     label: &str,
     sys: S,
     y0: Vec<f64>,
     energy: impl Fn(&[f64]) -> f64,
-    r: usize,
-    h: f64,
-    steps: usize,
+    cfg: &Config,
 ) -> Result<(), ecr::runtime::Error> {
-    let mut st = EcStepper::new(sys, r, h)?;
+    let Config {
+        r,
+        h,
+        steps,
+        settings,
+    } = *cfg;
+    let mut st = EcStepper::with_nodes(sys, r, r, h, settings)?;
     let mut y = y0;
     let h0 = energy(&y);
     let mut samples: Vec<(f64, f64)> = Vec::new();
@@ -68,6 +80,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let r: usize = args.get(1).map_or(Ok(3), |s| s.parse())?;
     let h: f64 = args.get(2).map_or(Ok(0.01), |s| s.parse())?;
+    let settings = SolverSettings {
+        tolerance: args
+            .get(3)
+            .map_or(Ok(SolverSettings::default().tolerance), |s| s.parse())?,
+        ..SolverSettings::default()
+    };
+    let cfg = Config {
+        r,
+        h,
+        steps,
+        settings,
+    };
     println!(
         "| problem | r | h | steps | max rel. energy error | mean, first tenth | mean, last tenth | drift per step | drift × steps | CPU s | ns per step |"
     );
@@ -79,20 +103,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         d.system()?,
         d.initial_value(),
         move |y| dd.energy(y),
-        r,
-        h,
-        steps,
+        &cfg,
     )?;
     let w = Wind::conservative();
-    let ww = w.clone();
+    let ww = w;
     run(
         "wind θ = π/2",
         w.system()?,
         w.initial_value(),
         move |y| ww.energy(y),
-        r,
-        h,
-        steps,
+        &cfg,
     )?;
     Ok(())
 }

@@ -359,6 +359,7 @@ impl<S: SecondOrderSystem, K: Kernel> TcStepper<S, K> {
     /// [`Error::InvalidParameter`] for bad settings, [`Error::InvalidStepSize`] for h.
     pub fn from_kernel(kernel: K, system: S, h: f64, settings: SolverSettings) -> Result<Self> {
         settings.validate()?;
+        settings.require_fixed_point("TcStepper")?;
         let (r, s, d) = (kernel.r(), kernel.s(), system.omega().dim());
         let (bank, coef) = Self::build(&system, &kernel, h, settings.predictor)?;
         Ok(TcStepper {

@@ -31,6 +31,12 @@ pub trait System {
     fn energy(&self, _y: &[f64]) -> Option<f64> {
         None
     }
+    /// Writes the Jacobian ∂g/∂y at y into `jac` (d × d) and returns `true`, or returns `false`
+    /// (the default) if it is not provided: the Newton stage solver then uses forward
+    /// differences.
+    fn jacobian(&self, _y: &[f64], _jac: &mut DMatrix<f64>, _scratch: &mut [f64]) -> bool {
+        false
+    }
 }
 
 impl<S: System + ?Sized> System for &S {
@@ -49,6 +55,9 @@ impl<S: System + ?Sized> System for &S {
     }
     fn energy(&self, y: &[f64]) -> Option<f64> {
         (**self).energy(y)
+    }
+    fn jacobian(&self, y: &[f64], jac: &mut DMatrix<f64>, scratch: &mut [f64]) -> bool {
+        (**self).jacobian(y, jac, scratch)
     }
 }
 

@@ -5,7 +5,7 @@
 use ecr_runtime::Error;
 use ecr_runtime::problems::{Duffing, Fpu};
 use ecr_runtime::second_order::TcStepper;
-use ecr_runtime::stepper::{EcStepper, Predictor, SolverSettings, SweepLimit};
+use ecr_runtime::stepper::{EcStepper, Predictor, SolverSettings, StageSolver, SweepLimit};
 use proptest::prelude::*;
 use proptest::test_runner::{Config as ProptestConfig, RngSeed};
 
@@ -50,9 +50,10 @@ fn settings() -> impl Strategy<Value = SolverSettings> {
         0usize..8,
         any::<bool>(),
         any::<bool>(),
+        any::<bool>(),
     )
         .prop_map(
-            |(tolerance, max_sweeps, accept, extrapolate)| SolverSettings {
+            |(tolerance, max_sweeps, accept, extrapolate, newton)| SolverSettings {
                 tolerance,
                 max_sweeps,
                 on_limit: if accept {
@@ -64,6 +65,11 @@ fn settings() -> impl Strategy<Value = SolverSettings> {
                     Predictor::Extrapolate
                 } else {
                     Predictor::Constant
+                },
+                solver: if newton {
+                    StageSolver::Newton
+                } else {
+                    StageSolver::FixedPoint
                 },
             },
         )

@@ -140,6 +140,7 @@ impl<S: System> ExpAvf<S> {
     /// [`Error::InvalidParameter`] for k = 0 or bad settings, [`Error::InvalidStepSize`].
     pub fn new(system: S, k: usize, h: f64, settings: SolverSettings) -> Result<Self> {
         settings.validate()?;
+        settings.require_fixed_point("ExpAvf")?;
         let c = coefficients(1, k)?;
         let d = system.dim();
         let bank = system.linear().phi_bank(h, &[1.0], 1)?;
