@@ -2,12 +2,14 @@
 //! g-evaluations and φ-bank applications a step performs, timed alone. All in one run:
 //! `cargo bench --bench steppers`. Each iteration is 100 steps of r = 3 (order 6), h = 0.01,
 //! from the same start, on Duffing (ω = 5, k = 0.07) and the conservative wind problem (d = 2).
+//! The macro stepper is also timed with the plain f64 update (`compensated: false`): the price
+//! of the compensated double-double update.
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use ecr::ecr_method;
 use ecr::runtime::operator::{Dense, DenseStatic, LinearOperator, PhiBank};
 use ecr::runtime::problems::{Duffing, Wind};
-use ecr::runtime::stepper::EcStepper;
+use ecr::runtime::stepper::{EcStepper, SolverSettings, Stepper};
 use ecr::runtime::system::Semilinear;
 use nalgebra::{DMatrix, SMatrix};
 use std::hint::black_box;
@@ -27,6 +29,17 @@ fn bench_problem(
     let sa: SMatrix<f64, 2, 2> = SMatrix::from_iterator(a.iter().copied());
     let mut fixed: Ec3<_, 2> =
         Ec3::fixed(Semilinear::new(DenseStatic::new(sa).unwrap(), g), H).unwrap();
+    let plain = SolverSettings {
+        compensated: false,
+        ..SolverSettings::default()
+    };
+    let mut fixed_plain: Ec3<_, 2> = Stepper::from_kernel(
+        Ec3Kernel,
+        Semilinear::new(DenseStatic::new(sa).unwrap(), g),
+        H,
+        plain,
+    )
+    .unwrap();
     let mut rt_dense =
         EcStepper::new(Semilinear::new(Dense::new(a.clone()).unwrap(), g), 3, H).unwrap();
     let mut rt_static =
@@ -58,6 +71,15 @@ fn bench_problem(
             let mut y = y0;
             for _ in 0..STEPS {
                 fixed.step(black_box(&mut y)).unwrap();
+            }
+            y
+        })
+    });
+    group.bench_function("macro Ec3<_, 2> (DenseStatic), plain f64 update", |b| {
+        b.iter(|| {
+            let mut y = y0;
+            for _ in 0..STEPS {
+                fixed_plain.step(black_box(&mut y)).unwrap();
             }
             y
         })

@@ -71,6 +71,7 @@ fn settings() -> impl Strategy<Value = SolverSettings> {
                 } else {
                     StageSolver::FixedPoint
                 },
+                compensated: !accept,
             },
         )
 }
