@@ -189,6 +189,32 @@ fn nls_runs_with_small_energy_error() {
 /// Replacements of base option values, extra arguments.
 type Case<'a> = (&'a [(&'a str, &'a str)], &'a [&'a str]);
 
+/// --newton: the same solution as fixed-point sweeps, reported in the JSON.
+#[test]
+fn newton_stage_solver() {
+    let args = [
+        "--problem",
+        "wind",
+        "--r",
+        "3",
+        "--h",
+        "0.05",
+        "--t-end",
+        "5",
+    ];
+    let plain = run_ok(&args);
+    let mut with: Vec<&str> = args.to_vec();
+    with.push("--newton");
+    let newton = run_ok(&with);
+    check_fields(&newton);
+    assert_eq!(newton["solver"]["newton"], true);
+    let (a, b) = (&plain["y"], &newton["y"]);
+    for i in 0..2 {
+        let d = (a[i].as_f64().unwrap() - b[i].as_f64().unwrap()).abs();
+        assert!(d <= 1e-12, "y[{i}] differs by {d:e}");
+    }
+}
+
 #[test]
 fn bad_input_gives_one_line_and_exit_2() {
     let base = [
@@ -237,6 +263,7 @@ fn bad_input_gives_one_line_and_exit_2() {
         (&[("--problem", "fpu")], &["--method", "tc", "--theta", "1"]),
         (&[], &["--tolerance", "-1"]),
         (&[], &["--max-sweeps", "0"]),
+        (&[("--problem", "fpu")], &["--method", "tc", "--newton"]),
         (&[], &["--bogus"]),
         // Non-convergence is a runtime failure with the same contract.
         (&[], &["--max-sweeps", "1"]),

@@ -66,6 +66,7 @@ const TOKENS: &[&str] = &[
     "--max-sweeps",
     "--paper-solver",
     "--extrapolate",
+    "--newton",
     "--family",
     "--format",
     "json",

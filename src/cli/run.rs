@@ -5,7 +5,7 @@ use clap::{Args, ValueEnum};
 use ecr_runtime::integrate::{IntegrateOptions, Integrator, Report, integrate};
 use ecr_runtime::problems::{Duffing, Fpu, Nls, Wind};
 use ecr_runtime::second_order::TcStepper;
-use ecr_runtime::stepper::{EcStepper, Predictor, SolverSettings};
+use ecr_runtime::stepper::{EcStepper, Predictor, SolverSettings, StageSolver};
 use serde_json::{Value, json};
 use std::io::Write;
 use std::time::Instant;
@@ -118,6 +118,10 @@ pub struct RunArgs {
     /// extrapolated to the new nodes (fewer sweeps; same converged steps up to the tolerance).
     #[arg(long)]
     extrapolate: bool,
+    /// Solve the stage equations by simplified Newton (Jacobian of g by forward differences)
+    /// instead of fixed-point sweeps: for stiff nonlinearities. ECrP only.
+    #[arg(long)]
+    newton: bool,
 }
 
 fn usage(e: ecr_runtime::Error) -> UsageError {
@@ -248,6 +252,9 @@ fn solver_settings(args: &RunArgs) -> SolverSettings {
     if args.extrapolate {
         settings.predictor = Predictor::Extrapolate;
     }
+    if args.newton {
+        settings.solver = StageSolver::Newton;
+    }
     settings
 }
 
@@ -354,6 +361,7 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), UsageError> {
             "max_sweeps": settings.max_sweeps,
             "paper": args.paper_solver,
             "extrapolate": args.extrapolate,
+            "newton": args.newton,
         },
         "y": y,
         "energy_start": report.energy_start,
