@@ -752,6 +752,8 @@ fn dense_jordan_blocks() {
         (-1e4, 1e4),
         (-1e8, 1e8),
         (-1e8, 1.0),
+        (-1e12, 1e12),
+        (-1e12, 1.0),
         (0.0, 1e3),
     ] {
         let mut a = DMatrix::from_element(d, d, 0.0);
@@ -789,7 +791,7 @@ fn dense_jordan_blocks() {
             assert!(e <= tol, "lambda {lambda}, nu {nu}, k = {k}: err {e:e}");
         }
         if lambda <= -1e8 {
-            // Strong damping: φ₀ ≈ 0 (here it underflows: e^{−1e8}).
+            // Strong damping: φ₀ ≈ 0 (here it underflows: e^{−1e8}, e^{−1e12}).
             assert!(
                 phis[0].iter().all(|v| v.abs() <= 1e-300),
                 "phi0 not ~0: {}",
