@@ -24,6 +24,8 @@ struct AllenCahn {
     dx: f64,
     /// Whether to offer the analytic Jacobian (else the stepper uses finite differences).
     analytic_jacobian: bool,
+    /// A broken Jacobian (NaN entries), for the error test.
+    broken_jacobian: bool,
 }
 
 impl AllenCahn {
@@ -37,6 +39,7 @@ impl AllenCahn {
             op: Circulant::new(c)?,
             dx,
             analytic_jacobian,
+            broken_jacobian: false,
         })
     }
 
@@ -75,7 +78,7 @@ impl System for AllenCahn {
         if !self.analytic_jacobian {
             return false;
         }
-        jac.fill(0.0);
+        jac.fill(if self.broken_jacobian { f64::NAN } else { 0.0 });
         for (i, u) in y.iter().enumerate() {
             jac[(i, i)] = (1.0 - 3.0 * u * u) / (EPS * EPS);
         }
@@ -173,6 +176,20 @@ fn newton_agrees_with_fixed_point_where_both_converge() {
         sb <= sa,
         "Newton should not need more iterations ({sb} vs {sa})"
     );
+}
+
+#[test]
+fn a_non_finite_jacobian_is_an_error_naming_it() {
+    let mut p = AllenCahn::new(true).unwrap();
+    p.broken_jacobian = true;
+    let mut st = EcStepper::with_nodes(&p, 2, 2, 3e-4, newton()).unwrap();
+    let mut u = p.initial_value();
+    let u0 = u.clone();
+    match st.step(&mut u) {
+        Err(Error::NonFinite(what)) => assert!(what.contains("Jacobian"), "{what}"),
+        other => panic!("expected NonFinite(Jacobian …), got {other:?}"),
+    }
+    assert_eq!(u, u0);
 }
 
 #[test]
