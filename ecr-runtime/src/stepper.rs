@@ -718,6 +718,15 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                     }
                 }
             }
+            if nw.jac.shape() != (d, d) {
+                let found = nw.jac.nrows() * nw.jac.ncols();
+                nw.jac = nalgebra::DMatrix::zeros(d, d);
+                return Err(Error::DimensionMismatch {
+                    what: "Jacobian of g (d × d entries)",
+                    expected: d * d,
+                    found,
+                });
+            }
             if nw.jac.iter().any(|v| !v.is_finite()) {
                 return Err(Error::NonFinite("Jacobian of g at y₀"));
             }

@@ -26,6 +26,8 @@ struct AllenCahn {
     analytic_jacobian: bool,
     /// A broken Jacobian (NaN entries), for the error test.
     broken_jacobian: bool,
+    /// A Jacobian of the wrong size, for the error test.
+    resized_jacobian: bool,
 }
 
 impl AllenCahn {
@@ -40,6 +42,7 @@ impl AllenCahn {
             dx,
             analytic_jacobian,
             broken_jacobian: false,
+            resized_jacobian: false,
         })
     }
 
@@ -77,6 +80,10 @@ impl System for AllenCahn {
     fn jacobian(&self, y: &[f64], jac: &mut DMatrix<f64>, _scratch: &mut [f64]) -> bool {
         if !self.analytic_jacobian {
             return false;
+        }
+        if self.resized_jacobian {
+            *jac = DMatrix::zeros(3, 3);
+            return true;
         }
         jac.fill(if self.broken_jacobian { f64::NAN } else { 0.0 });
         for (i, u) in y.iter().enumerate() {
@@ -179,7 +186,7 @@ fn newton_agrees_with_fixed_point_where_both_converge() {
 }
 
 #[test]
-fn a_non_finite_jacobian_is_an_error_naming_it() {
+fn a_bad_jacobian_is_an_error_naming_it() {
     let mut p = AllenCahn::new(true).unwrap();
     p.broken_jacobian = true;
     let mut st = EcStepper::with_nodes(&p, 2, 2, 3e-4, newton()).unwrap();
@@ -189,6 +196,15 @@ fn a_non_finite_jacobian_is_an_error_naming_it() {
         Err(Error::NonFinite(what)) => assert!(what.contains("Jacobian"), "{what}"),
         other => panic!("expected NonFinite(Jacobian …), got {other:?}"),
     }
+    assert_eq!(u, u0);
+    // A Jacobian of the wrong shape: a dimension error, not a panic.
+    let mut p = AllenCahn::new(true).unwrap();
+    p.resized_jacobian = true;
+    let mut st = EcStepper::with_nodes(&p, 2, 2, 3e-4, newton()).unwrap();
+    assert!(matches!(
+        st.step(&mut u),
+        Err(Error::DimensionMismatch { expected, found: 9, .. }) if expected == N * N
+    ));
     assert_eq!(u, u0);
 }
 
