@@ -209,3 +209,40 @@ fn unusable_out_is_a_one_line_error() {
         assert!(stderr.contains("not-a-dir"), "{stderr}");
     }
 }
+
+#[test]
+fn malformed_arguments_are_one_line_errors() {
+    // Every command, and none at all: rejected before any work, one line on stderr, status 2.
+    let cases: &[&[&str]] = &[
+        &[],
+        &["benchmark"],
+        &["bench", "--only", "nonsense"],
+        &["bench", "--only"],
+        &["bench", "--quick", "extra"],
+        &["bench", "--out"],
+        &["bench", "--quick=yes"],
+        &["reproduce", "--bogus"],
+        &["reproduce", "--out"],
+        &["reproduce", "--quick", "--quick"],
+        &["tables", "--r"],
+        &["tables", "--family", "ec", "--r", "3", "--s", "-1"],
+        &["run"],
+        &[
+            "run",
+            "--problem",
+            "duffing",
+            "--r",
+            "2",
+            "--h",
+            "0.1",
+            "--t-end",
+        ],
+    ];
+    for args in cases {
+        let (code, stdout, stderr) = ecr(args);
+        assert_eq!(code, 2, "{args:?}: stdout {stdout} stderr {stderr}");
+        assert!(stdout.is_empty(), "{args:?}: {stdout}");
+        assert!(stderr.starts_with("error: "), "{args:?}: {stderr}");
+        assert_eq!(stderr.trim_end().lines().count(), 1, "{args:?}: {stderr}");
+    }
+}
