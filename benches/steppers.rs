@@ -1,5 +1,6 @@
 //! Fixed-order (`ecr_method!`) vs run-time stepper, and each against its kernel cost: the
-//! g-evaluations and φ-bank applications a step performs, timed alone. All in one run:
+//! g-evaluations and operator applications a step performs (φ-bank combines, the fused stage
+//! matrices, the double-double propagator), timed alone. All in one run:
 //! `cargo bench --bench steppers`. Each iteration is 100 steps of r = 3 (order 6), h = 0.01,
 //! from the same start, on Duffing (ω = 5, k = 0.07) and the conservative wind problem (d = 2).
 //! The macro stepper is also timed with the plain f64 update (`compensated: false`): the price
@@ -7,9 +8,9 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use ecr::ecr_method;
-use ecr::runtime::operator::{Dense, DenseStatic, LinearOperator, PhiBank};
+use ecr::runtime::operator::{Dense, DenseStatic, PhiBank};
 use ecr::runtime::problems::{Duffing, Wind};
-use ecr::runtime::stepper::{EcStepper, SolverSettings, Stepper};
+use ecr::runtime::stepper::{Buffers, EcStepper, SolverSettings, StaticBuffers, Stepper};
 use ecr::runtime::system::Semilinear;
 use nalgebra::{DMatrix, SMatrix};
 use std::hint::black_box;
@@ -53,18 +54,19 @@ fn bench_problem(
         g_evals += rep.g_evals;
         sweeps += rep.sweeps;
     }
+    // The operator applications of a step, from the macro stepper's own bank: once per step
+    // e^{cᵢhA} y₀ (s nodes), per sweep the fused stage matrices, at the end the combine at
+    // τ = 1, the double-double propagator and the propagated carried rounding error.
     let s = 3;
-    let mut taus = Ec3Kernel::NODES.to_vec();
-    taus.push(1.0);
-    let bank = DenseStatic::new(sa)
-        .unwrap()
-        .kernel_bank(H, &taus, 3)
-        .unwrap();
-    #[allow(clippy::let_unit_value)] // DenseStatic needs no workspace; generic code does
-    let mut ws = bank.workspace();
-    let coef = [H; 12];
-    let (mut stages, mut moments, mut gout) = ([0.0; 6], [0.1; 6], [0.0; 2]);
-
+    let bank = fixed.bank().clone();
+    let mats = fixed
+        .stage_matrices()
+        .expect("d = 2, s = r: the stepper fuses its sweeps")
+        .to_vec();
+    let coef = [H; 3];
+    let (mut props, mut stages, moments) = ([0.0; 6], [0.0; 6], [0.1; 6]);
+    let (mut gout, mut hi, mut lo) = ([0.0; 2], [0.0; 2], [0.0; 2]);
+    let g_in = [0.3; 6];
     let mut group = c.benchmark_group(name);
     group.bench_function("macro Ec3<_, 2> (DenseStatic)", |b| {
         b.iter(|| {
@@ -102,19 +104,23 @@ fn bench_problem(
             y
         })
     });
-    group.bench_function("kernel cost (g + kernel-bank applications)", |b| {
+    group.bench_function("kernel cost (g + operator applications)", |b| {
         b.iter(|| {
             for _ in 0..g_evals {
                 g(black_box(&y0), &mut gout);
             }
+            for _ in 0..STEPS {
+                bank.combine(0..s, black_box(&y0), &[], &[], &mut props, &mut ());
+            }
             for _ in 0..sweeps {
-                bank.combine(
-                    0..s,
-                    black_box(&y0),
-                    &moments,
-                    &coef[..9],
+                // The stepper's own fused sweep for its buffers (constant s and d, unrolled).
+                StaticBuffers::<2, 3, 3>::fused_sweep(
+                    &mats,
+                    &props,
+                    black_box(&g_in),
                     &mut stages,
-                    &mut ws,
+                    s,
+                    2,
                 );
             }
             for _ in 0..STEPS {
@@ -122,13 +128,14 @@ fn bench_problem(
                     s..s + 1,
                     black_box(&y0),
                     &moments,
-                    &coef[9..],
+                    &coef,
                     &mut gout,
-                    &mut ws,
+                    &mut (),
                 );
+                bank.propagate_dd(s, black_box(&y0), &mut hi, &mut lo);
+                bank.apply(s, 0, black_box(&lo), &mut hi, &mut ());
             }
-            moments[0] += gout[0] * 1e-300;
-            stages
+            (stages, gout, hi)
         })
     });
     group.finish();

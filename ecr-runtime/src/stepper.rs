@@ -16,6 +16,12 @@
 //!
 //! The kernel bank for the nodes and τ = 1 is built once per step size; a step allocates nothing.
 //!
+//! Small dense systems fuse each sweep: with the stage matrices `M_ik = h cᵢ Σ_j (2j+1)
+//! ℓ_jk Ψ_j(cᵢ, hA)` ([`stage_matrices`], built with the bank) a sweep is `Y_i = e^{cᵢhA} y₀ +
+//! Σ_k M_ik g(Y_k)`, `s²d²` multiply-adds with `e^{cᵢhA} y₀` formed once per step, instead of the
+//! moments and a `combine` (`rsd + s(r+1)d²`); [`fuses_stages`] decides. The fused matrices
+//! are bounded sums of bounded terms: no cancellation for any r.
+//!
 //! Long runs: where the bank carries the propagator in double-double ([`PhiBank::propagate_dd`]:
 //! dense operators up to `DD_PROPAGATOR_MAX_DIM`), the new state is `e^{hA} y₀` in
 //! double-double plus the nonlinear part plus `e^{hA} c`, where `c` is the rounding error of
@@ -302,6 +308,8 @@ pub struct BufferParts<'a> {
     pub stages: &'a mut [f64],
     /// The next fixed-point iterate of the stages.
     pub new_stages: &'a mut [f64],
+    /// The propagated start `e^{cᵢhA} y₀` of each stage (s·d; fused sweeps only).
+    pub props: &'a mut [f64],
     /// g(Y₁)..g(Y_s).
     pub g: &'a mut [f64],
     /// Moments G₀..G_{r−1}.
@@ -327,6 +335,12 @@ pub trait Buffers: Sized {
     fn y0(&self) -> &[f64];
     /// The moments of the last step.
     fn moments(&self) -> &[f64];
+    /// [`apply_stage_matrices`] for these sizes (fixed-size storage passes its compile-time s
+    /// and d, so that the loops unroll).
+    #[inline(always)]
+    fn fused_sweep(mats: &[f64], props: &[f64], g: &[f64], out: &mut [f64], s: usize, d: usize) {
+        apply_stage_matrices(mats, props, g, out, s, d);
+    }
 }
 
 /// Heap buffers, allocated once at construction (any d known at run time).
@@ -335,6 +349,7 @@ pub struct VecBuffers {
     y0: Vec<f64>,
     stages: Vec<f64>,
     new_stages: Vec<f64>,
+    props: Vec<f64>,
     g: Vec<f64>,
     moments: Vec<f64>,
     last: Vec<f64>,
@@ -347,6 +362,7 @@ impl Buffers for VecBuffers {
             y0: vec![0.0; d],
             stages: vec![0.0; s * d],
             new_stages: vec![0.0; s * d],
+            props: vec![0.0; s * d],
             g: vec![0.0; s * d],
             moments: vec![0.0; r * d],
             last: vec![0.0; d],
@@ -361,6 +377,7 @@ impl Buffers for VecBuffers {
             y0: &mut self.y0,
             stages: &mut self.stages,
             new_stages: &mut self.new_stages,
+            props: &mut self.props,
             g: &mut self.g,
             moments: &mut self.moments,
             last: &mut self.last,
@@ -382,6 +399,7 @@ pub struct StaticBuffers<const D: usize, const S: usize, const R: usize> {
     y0: [f64; D],
     stages: [[f64; D]; S],
     new_stages: [[f64; D]; S],
+    props: [[f64; D]; S],
     g: [[f64; D]; S],
     moments: [[f64; D]; R],
     last: [f64; D],
@@ -405,6 +423,7 @@ impl<const D: usize, const S: usize, const R: usize> Buffers for StaticBuffers<D
             y0: [0.0; D],
             stages: [[0.0; D]; S],
             new_stages: [[0.0; D]; S],
+            props: [[0.0; D]; S],
             g: [[0.0; D]; S],
             moments: [[0.0; D]; R],
             last: [0.0; D],
@@ -419,6 +438,7 @@ impl<const D: usize, const S: usize, const R: usize> Buffers for StaticBuffers<D
             y0: &mut self.y0,
             stages: self.stages.as_flattened_mut(),
             new_stages: self.new_stages.as_flattened_mut(),
+            props: self.props.as_flattened_mut(),
             g: self.g.as_flattened_mut(),
             moments: self.moments.as_flattened_mut(),
             last: &mut self.last,
@@ -430,6 +450,10 @@ impl<const D: usize, const S: usize, const R: usize> Buffers for StaticBuffers<D
     }
     fn moments(&self) -> &[f64] {
         self.moments.as_flattened()
+    }
+    #[inline(always)]
+    fn fused_sweep(mats: &[f64], props: &[f64], g: &[f64], out: &mut [f64], _: usize, _: usize) {
+        apply_stage_matrices(mats, props, g, out, S, D);
     }
 }
 
@@ -445,6 +469,9 @@ pub struct Stepper<K: Kernel, S: System, B: Buffers> {
     /// extrapolating predictor).
     coef: Vec<f64>,
     scratch: Vec<f64>,
+    /// The stage matrices of the fused sweep ([`stage_matrices`]), where it is cheaper (see
+    /// [`fuses_stages`]); otherwise `None` and each sweep forms the moments and combines.
+    fused: Option<Vec<f64>>,
     buf: B,
     /// The buffers hold a completed step (y₀, moments, and its end in `last`) for this h.
     have_previous: bool,
@@ -452,11 +479,11 @@ pub struct Stepper<K: Kernel, S: System, B: Buffers> {
     newton: Option<Box<NewtonState>>,
 }
 
-/// What the simplified Newton iteration keeps: the kernel matrices for the step size and
+/// What the simplified Newton iteration keeps: the stage matrices for the step size and
 /// scratch for the Jacobian.
 struct NewtonState {
-    /// `Q_ik = Σ_j coef_ij ℓ_jk Ψ_j(c_i, hA)` (d × d) at `q[i·s + k]`: `∂Φ_i/∂g_k`.
-    q: Vec<nalgebra::DMatrix<f64>>,
+    /// The stage matrices `∂Φ_i/∂g_k` ([`stage_matrices`]).
+    q: Vec<f64>,
     jac: nalgebra::DMatrix<f64>,
     /// d-vectors: a point, g there, g at y₀.
     yp: Vec<f64>,
@@ -465,7 +492,6 @@ struct NewtonState {
 }
 
 impl NewtonState {
-    /// The kernel matrices from `s·r·d` bank applications.
     fn new<K: Kernel, Bk: PhiBank>(
         kernel: &K,
         bank: &Bk,
@@ -473,42 +499,107 @@ impl NewtonState {
         ws: &mut Bk::Workspace,
         d: usize,
     ) -> Self {
-        let (s, m) = (kernel.s(), kernel.r());
-        // ℓ_jk: the Legendre moments of the unit vectors (d = 1).
-        let mut ell = vec![0.0; m * s];
-        let (mut unit, mut mom) = (vec![0.0; s], vec![0.0; m]);
-        for k in 0..s {
-            unit.fill(0.0);
-            unit[k] = 1.0;
-            kernel.legendre_moments(&unit, &mut mom, 1);
-            for j in 0..m {
-                ell[j * s + k] = mom[j];
-            }
-        }
-        let mut q = vec![nalgebra::DMatrix::<f64>::zeros(d, d); s * s];
-        let (mut e, mut col) = (vec![0.0; d], vec![0.0; d]);
-        for i in 0..s {
-            for l in 0..d {
-                e.fill(0.0);
-                e[l] = 1.0;
-                for j in 0..m {
-                    bank.apply(i, j + 1, &e, &mut col, ws);
-                    for k in 0..s {
-                        let c = coef[i * m + j] * ell[j * s + k];
-                        let mut qc = q[i * s + k].column_mut(l);
-                        for (a, b) in qc.iter_mut().zip(&col) {
-                            *a += c * b;
-                        }
-                    }
-                }
-            }
-        }
         NewtonState {
-            q,
+            q: stage_matrices(kernel, bank, coef, ws, d),
             jac: nalgebra::DMatrix::zeros(d, d),
             yp: vec![0.0; d],
             gp: vec![0.0; d],
             g0: vec![0.0; d],
+        }
+    }
+}
+
+/// The stage matrices of ECrP: `M_ik = Σ_j coef_ij ℓ_jk Ψ_j(cᵢ, hA)` (`coef_ij = h cᵢ (2j+1)`,
+/// `ℓ_jk = b_k P̃_j(c_k)`), so that the stage equations read `Y_i = e^{cᵢhA} y₀ + Σ_k M_ik
+/// g(Y_k)`: the moments and the kernels fused into one linear map, and `∂Φ_i/∂g_k` for
+/// Newton. Block (i, k) is the d × d matrix at `(i·s + k)·d²`, column-major; each entry is
+/// summed over j = 0, 1, … from 0.0. Built from `s·r·d` applications of the kernel bank
+/// (once per step size).
+pub fn stage_matrices<K: Kernel, Bk: PhiBank>(
+    kernel: &K,
+    bank: &Bk,
+    coef: &[f64],
+    ws: &mut Bk::Workspace,
+    d: usize,
+) -> Vec<f64> {
+    let (s, m) = (kernel.s(), kernel.r());
+    // ℓ_jk: the Legendre moments of the unit vectors (d = 1).
+    let mut ell = vec![0.0; m * s];
+    let (mut unit, mut mom) = (vec![0.0; s], vec![0.0; m]);
+    for k in 0..s {
+        unit.fill(0.0);
+        unit[k] = 1.0;
+        kernel.legendre_moments(&unit, &mut mom, 1);
+        for j in 0..m {
+            ell[j * s + k] = mom[j];
+        }
+    }
+    let dd = d * d;
+    let mut q = vec![0.0; s * s * dd];
+    let (mut e, mut col) = (vec![0.0; d], vec![0.0; d]);
+    for i in 0..s {
+        for l in 0..d {
+            e.fill(0.0);
+            e[l] = 1.0;
+            for j in 0..m {
+                bank.apply(i, j + 1, &e, &mut col, ws);
+                for k in 0..s {
+                    let c = coef[i * m + j] * ell[j * s + k];
+                    let start = (i * s + k) * dd + l * d;
+                    for (a, b) in q[start..start + d].iter_mut().zip(&col) {
+                        *a += c * b;
+                    }
+                }
+            }
+        }
+    }
+    q
+}
+
+/// The most entries (`s²d²`) the fused stage matrices may have: 8 MiB.
+pub const FUSED_MAX_ENTRIES: usize = 1 << 20;
+
+/// Whether ECrP fuses its sweeps for this bank: the bank multiplies dense matrices
+/// ([`PhiBank::dense_matrices`]) and the fused sweep, `s²d²` multiply-adds, costs no more than
+/// the moments and `combine`, `s(r+1)d² + rsd` (i.e. `sd ≤ (r+1)d + r`: s = r or r + 1 for
+/// most d), within [`FUSED_MAX_ENTRIES`].
+pub fn fuses_stages<Bk: PhiBank>(bank: &Bk, r: usize, s: usize) -> bool {
+    let d = bank.dim();
+    bank.dense_matrices()
+        && s * d <= (r + 1) * d + r
+        && s.saturating_mul(s).saturating_mul(d).saturating_mul(d) <= FUSED_MAX_ENTRIES
+}
+
+/// The fused sweep: `out_i = props_i + Σ_k M_ik g_k` for i < s, with the stage matrices of
+/// [`stage_matrices`] and `props_i = e^{cᵢhA} y₀`. Each output starts from `props_i` and
+/// adds the blocks k = 0, 1, … column by column. Does not allocate.
+///
+/// # Panics
+/// If `mats.len() < s²d²` or `props`, `g`, `out` are shorter than `s·d`.
+// Always inlined: in a fixed-order stepper s and d are then constants and the loops unroll.
+#[inline(always)]
+pub fn apply_stage_matrices(
+    mats: &[f64],
+    props: &[f64],
+    g: &[f64],
+    out: &mut [f64],
+    s: usize,
+    d: usize,
+) {
+    let (sd, dd) = (s * d, d * d);
+    let (mats, props, g, out) = (&mats[..s * s * dd], &props[..sd], &g[..sd], &mut out[..sd]);
+    for i in 0..s {
+        for a in 0..d {
+            out[i * d + a] = props[i * d + a];
+        }
+        for k in 0..s {
+            let blk = (i * s + k) * dd;
+            for b in 0..d {
+                let gb = g[k * d + b];
+                for a in 0..d {
+                    out[i * d + a] += mats[blk + b * d + a] * gb;
+                }
+            }
         }
     }
 }
@@ -566,8 +657,7 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
     pub fn from_kernel(kernel: K, system: S, h: f64, settings: SolverSettings) -> Result<Self> {
         check_settings(&settings)?;
         let buf = B::with_sizes(kernel.r(), kernel.s(), system.dim())?;
-        let (bank, coef) = Self::build_bank(&system, &kernel, h, settings.predictor)?;
-        let ws = bank.workspace();
+        let (bank, coef, fused, ws) = Self::build_bank(&system, &kernel, h, settings.predictor)?;
         Ok(Stepper {
             scratch: vec![0.0; system.scratch_len()],
             kernel,
@@ -577,18 +667,27 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             bank,
             ws,
             coef,
+            fused,
             buf,
             have_previous: false,
             newton: None,
         })
     }
 
+    /// The kernel bank for h, its combine coefficients, the fused stage matrices (where
+    /// [`fuses_stages`]) and a workspace.
+    #[allow(clippy::type_complexity)]
     fn build_bank(
         system: &S,
         kernel: &K,
         h: f64,
         predictor: Predictor,
-    ) -> Result<(<S::Op as LinearOperator>::Bank, Vec<f64>)> {
+    ) -> Result<(
+        <S::Op as LinearOperator>::Bank,
+        Vec<f64>,
+        Option<Vec<f64>>,
+        <<S::Op as LinearOperator>::Bank as PhiBank>::Workspace,
+    )> {
         if !(h.is_finite() && h > 0.0) {
             return Err(Error::InvalidStepSize(h));
         }
@@ -599,7 +698,11 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             taus.extend(kernel.nodes().iter().map(|c| 1.0 + c));
         }
         let bank = system.linear().kernel_bank(h, &taus, r)?;
-        Ok((bank, kernel_coefficients(h, &taus, r)))
+        let coef = kernel_coefficients(h, &taus, r);
+        let mut ws = bank.workspace();
+        let fused = fuses_stages(&bank, r, kernel.s())
+            .then(|| stage_matrices(kernel, &bank, &coef, &mut ws, system.dim()));
+        Ok((bank, coef, fused, ws))
     }
 
     /// Changes the step size (rebuilds the φ-bank: call it rarely).
@@ -610,11 +713,12 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
         if h == self.h {
             return Ok(());
         }
-        let (bank, coef) =
+        let (bank, coef, fused, ws) =
             Self::build_bank(&self.system, &self.kernel, h, self.settings.predictor)?;
-        self.ws = bank.workspace();
+        self.ws = ws;
         self.bank = bank;
         self.coef = coef;
+        self.fused = fused;
         self.h = h;
         self.have_previous = false;
         self.newton = None;
@@ -634,6 +738,19 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
     /// Number of quadrature points.
     pub fn s(&self) -> usize {
         self.kernel.s()
+    }
+
+    /// The fused stage matrices ([`stage_matrices`]: block (i, k) at `(i·s + k)·d²`,
+    /// column-major) if this stepper fuses its sweeps ([`fuses_stages`]), for
+    /// [`apply_stage_matrices`].
+    pub fn stage_matrices(&self) -> Option<&[f64]> {
+        self.fused.as_deref()
+    }
+
+    /// The φ-bank (kernel bank) of the step size: nodes c₁..c_s, then 1 (then 1 + cᵢ with the
+    /// extrapolating predictor).
+    pub fn bank(&self) -> &<S::Op as LinearOperator>::Bank {
+        &self.bank
     }
 
     /// The kernel.
@@ -678,6 +795,7 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             ws,
             coef,
             scratch,
+            fused,
             buf,
             have_previous,
             newton,
@@ -687,6 +805,7 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             y0,
             stages,
             new_stages,
+            props,
             g,
             moments,
             last,
@@ -734,7 +853,8 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             let mut nm = nalgebra::DMatrix::<f64>::identity(s * d, s * d);
             for i in 0..s {
                 for k in 0..s {
-                    let block = &nw.q[i * s + k] * &nw.jac;
+                    let q = &nw.q[(i * s + k) * d * d..(i * s + k + 1) * d * d];
+                    let block = nalgebra::DMatrixView::from_slice(q, d, d) * &nw.jac;
                     let mut view = nm.view_mut((i * d, k * d), (d, d));
                     view -= block;
                 }
@@ -784,9 +904,18 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
         let mut previous = f64::INFINITY;
         let mut stages: &mut [f64] = stages;
         let mut new_stages: &mut [f64] = new_stages;
+        let fused = fused.as_deref();
+        if fused.is_some() {
+            // e^{cᵢhA} y₀, once per step.
+            bank.combine(0..s, y0, &[], &[], props, ws);
+        }
         let (residual, converged) = loop {
-            kernel.legendre_moments(g, moments, d);
-            bank.combine(0..s, y0, moments, &coef[..s * m], new_stages, ws);
+            if let Some(mats) = fused {
+                B::fused_sweep(mats, props, g, new_stages, s, d);
+            } else {
+                kernel.legendre_moments(g, moments, d);
+                bank.combine(0..s, y0, moments, &coef[..s * m], new_stages, ws);
+            }
             if let Some(lu) = &lu {
                 // Y ← Y + (I − Φ'(y₀))⁻¹ (Φ(Y) − Y).
                 let rhs = nalgebra::DVector::from_iterator(

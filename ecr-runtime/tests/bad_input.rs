@@ -8,12 +8,12 @@ use ecr_runtime::integrate::{IntegrateOptions, integrate};
 use ecr_runtime::operator::{Circulant, Dense, DenseStatic, Diagonal, Scalar, Symmetric};
 use ecr_runtime::problems::Duffing;
 use ecr_runtime::stepper::{EcStepper, SolverSettings};
-use ecr_runtime::system::{GradientFlow, Hamiltonian, Semilinear};
+use ecr_runtime::system::{GradientFlow, Hamiltonian, Semilinear, System};
 use nalgebra::{DMatrix, SMatrix};
 
 const BAD: [f64; 3] = [f64::NAN, f64::INFINITY, f64::NEG_INFINITY];
 
-fn duffing() -> (Duffing, Semilinear<Dense, impl Fn(&[f64], &mut [f64])>) {
+fn duffing() -> (Duffing, impl System<Op = Dense>) {
     let p = Duffing::default();
     let pg = p.clone();
     let sys = Semilinear::new(

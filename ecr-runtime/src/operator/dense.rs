@@ -205,6 +205,10 @@ impl PhiBank for DenseBank {
         }
     }
 
+    fn dense_matrices(&self) -> bool {
+        true
+    }
+
     fn propagate_dd(&self, i: usize, y0: &[f64], hi: &mut [f64], lo: &mut [f64]) -> bool {
         match &self.lo[i] {
             Some(l) => {
@@ -368,6 +372,10 @@ impl<const D: usize> PhiBank for DenseStaticBank<D> {
             }
             o.copy_from_slice(acc.as_slice());
         }
+    }
+
+    fn dense_matrices(&self) -> bool {
+        true
     }
 
     fn propagate_dd(&self, i: usize, y0: &[f64], hi: &mut [f64], lo: &mut [f64]) -> bool {

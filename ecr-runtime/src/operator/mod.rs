@@ -252,6 +252,14 @@ pub trait PhiBank {
         false
     }
 
+    /// `true` if the bank holds its functions as dense `d × d` matrices, so that
+    /// [`combine`](Self::combine) costs `O(d²)` per term ([`Dense`], [`DenseStatic`]). The
+    /// ECrP stepper then fuses its moments and kernels into stage matrices where that is
+    /// cheaper ([`fuses_stages`](crate::stepper::fuses_stages)). Default `false`.
+    fn dense_matrices(&self) -> bool {
+        false
+    }
+
     /// `out = φ_k(τ_i h A) x`. Does not allocate.
     ///
     /// # Panics
