@@ -78,6 +78,13 @@ pub fn sweeps_converged(residual: f64, previous: f64, tolerance: f64) -> bool {
     estimate_ok || (r <= ROUNDOFF_RESIDUAL && r >= STAGNATION_THETA * p)
 }
 
+/// The [`Error::NonFinite`] of a diverging stage iteration.
+const DIVERGED: &str = "stage values (the stage iteration diverged)";
+
+/// The [`Error::NonFinite`] of g at the stages of an iteration that was diverging.
+const G_DIVERGED: &str =
+    "g(Y) at the iterates of a diverging stage iteration (last update >= half the stages)";
+
 /// What to do when the stage equations have not converged after the allowed sweeps.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum SweepLimit {
@@ -936,13 +943,20 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             let residual = diff / mag;
             std::mem::swap(&mut stages, &mut new_stages);
             sweeps += 1;
-            kernel.each_stage(|j| eval_g(stages, g, j))?;
-            g_evals += s;
             if !residual.is_finite() {
-                return Err(Error::NonFinite(
-                    "stage values (the fixed-point iteration diverged)",
-                ));
+                return Err(Error::NonFinite(DIVERGED));
             }
+            // g overflowing at stages that moved by half their size or more (a relative update
+            // tends to 1 as the iterates blow up) is most likely the iteration diverging (e.g. a
+            // stiff g with fixed-point sweeps) rather than a fault of g: say so.
+            kernel.each_stage(|j| eval_g(stages, g, j)).map_err(|e| {
+                if residual >= 0.5 {
+                    Error::NonFinite(G_DIVERGED)
+                } else {
+                    e
+                }
+            })?;
+            g_evals += s;
             if sweeps_converged(residual, previous, settings.tolerance) {
                 break (residual, true);
             }

@@ -114,8 +114,10 @@ fn fixed_point_fails_and_newton_converges_on_allen_cahn() {
     let mut u = p.initial_value();
     let u0 = u.clone();
     let err = st.step(&mut u).unwrap_err();
+    // It diverges (g overflows at the iterates): the error says so, rather than blaming g.
     assert!(
-        matches!(err, Error::NoConvergence { .. } | Error::NonFinite(_)),
+        matches!(err, Error::NoConvergence { .. })
+            || matches!(err, Error::NonFinite(w) if w.contains("diverg")),
         "{err}"
     );
     assert_eq!(u, u0, "a failed step leaves the state unchanged");
