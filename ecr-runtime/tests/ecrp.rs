@@ -65,12 +65,14 @@ use Check::*;
 
 /// (r, h_max, check): the coarsest step of each grid (40 steps, ratio 2^(1/8)).
 ///
-/// Not met (open): Duffing r = 5, 6 (measured 10.71, 13.00) and wind r = 6 (11.4–11.7, depending
-/// on where the floor is drawn: floor-dominated). ECrP is
+/// Not met, and not measurable in f64: Duffing r = 5, 6 (measured 10.69, 12.94) and wind r = 6
+/// (11.4–11.7, depending on where the floor is drawn: floor-dominated). ECrP is
 /// symmetric, so its global error is h^{2r}(e₀ + h² e₂ + …); at the step sizes where the error
 /// is still above the f64 round-off floor (≈ N ε after N steps) the h² term still bends the
 /// slope (local slopes fall from ≈ 11 to ≈ 10.4 for r = 5), and the error reaches the floor
-/// before the slope settles within 0.15. The same picture holds for six Duffing parameter
+/// before the slope settles within 0.15 — also with the compensated update, whose floor is
+/// ≈ 1e−15 flat in N (r = 5: local slopes 10.7, 10.5, 10.4, 10.35, 10.25 down to 1.4e−13, then
+/// round-off; T = 100 gives the same). The same picture holds for six Duffing parameter
 /// sets tried (ω, k) ∈ {(1, .5), (.5, .45), (1, .9), (.3, .25), (2, 1.5), (1, .2)}.
 const DUFFING_GRIDS: &[(usize, f64, Check)] = &[
     (1, 0.01, Within),
