@@ -499,15 +499,10 @@ struct NewtonState {
 }
 
 impl NewtonState {
-    fn new<K: Kernel, Bk: PhiBank>(
-        kernel: &K,
-        bank: &Bk,
-        coef: &[f64],
-        ws: &mut Bk::Workspace,
-        d: usize,
-    ) -> Self {
+    /// With the stage matrices `q` of the step size, for dimension d.
+    fn new(q: Vec<f64>, d: usize) -> Self {
         NewtonState {
-            q: stage_matrices(kernel, bank, coef, ws, d),
+            q,
             jac: nalgebra::DMatrix::zeros(d, d),
             yp: vec![0.0; d],
             gp: vec![0.0; d],
@@ -827,8 +822,14 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
         let extrapolate = continuing && settings.predictor == Predictor::Extrapolate;
         let mut jacobian_evals = 0;
         let lu = if settings.solver == StageSolver::Newton {
-            let nw = newton
-                .get_or_insert_with(|| Box::new(NewtonState::new(&*kernel, &*bank, coef, ws, d)));
+            let nw = newton.get_or_insert_with(|| {
+                // The fused sweeps' stage matrices where there are some (the same numbers).
+                let q = match fused {
+                    Some(q) => q.clone(),
+                    None => stage_matrices(&*kernel, &*bank, coef, ws, d),
+                };
+                Box::new(NewtonState::new(q, d))
+            });
             // The Jacobian of g at y₀: the system's, or forward differences.
             if !system.jacobian(y, &mut nw.jac, scratch) {
                 system.nonlinear(y, &mut nw.g0, scratch);
