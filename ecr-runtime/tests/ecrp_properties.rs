@@ -136,14 +136,7 @@ fn energy_over_one_million_duffing_steps_has_only_round_off_drift() {
     })
     .unwrap();
     assert_eq!(rep.steps, 1_000_000);
-    let n = samples.len() as f64;
-    let (mx, my) = (
-        samples.iter().map(|s| s.0).sum::<f64>() / n,
-        samples.iter().map(|s| s.1).sum::<f64>() / n,
-    );
-    let sxy: f64 = samples.iter().map(|s| (s.0 - mx) * (s.1 - my)).sum();
-    let sxx: f64 = samples.iter().map(|s| (s.0 - mx).powi(2)).sum();
-    let drift = sxy / sxx;
+    let drift = slope(&samples);
     let max = rep.max_energy_error.unwrap();
     println!("1e6 steps: max |H − H0|/|H0| = {max:.3e}, fitted drift per step {drift:.3e}");
     // The method's own error is bounded at O(h⁴) ≈ 2e-11 here (see the slope test); what

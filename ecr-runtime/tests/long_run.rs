@@ -12,6 +12,9 @@
 //! (< 1e−11 over 1e7 steps). With the plain f64 update (`compensated: false`) it was 7.5e−17
 //! (Duffing) and −9e−18 (wind) per step; `examples/long_run.rs` prints the full table.
 
+mod common_ec;
+
+use common_ec::slope;
 use ecr_runtime::integrate::{IntegrateOptions, integrate};
 use ecr_runtime::problems::{Duffing, Wind};
 use ecr_runtime::stepper::{EcStepper, SolverSettings};
@@ -41,13 +44,8 @@ fn energy_drift<S: System>(
     })
     .unwrap();
     assert_eq!(rep.steps, steps);
-    let n = samples.len() as f64;
-    let mx = samples.iter().map(|s| s.0).sum::<f64>() / n;
-    let my = samples.iter().map(|s| s.1).sum::<f64>() / n;
-    let sxy: f64 = samples.iter().map(|s| (s.0 - mx) * (s.1 - my)).sum();
-    let sxx: f64 = samples.iter().map(|s| (s.0 - mx).powi(2)).sum();
     let max = samples.iter().fold(0.0f64, |m, s| m.max(s.1.abs()));
-    (max, sxy / sxx)
+    (max, slope(&samples))
 }
 
 fn check(label: &str, run: impl Fn(usize, SolverSettings) -> (f64, f64)) {

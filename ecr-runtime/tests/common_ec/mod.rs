@@ -51,12 +51,17 @@ pub fn fitted_order(hs: &[f64], errs: &[f64], floor: f64, ceil: f64) -> (f64, us
         .filter(|&(_, &e)| e > floor && e < ceil)
         .map(|(&h, &e)| (h.ln(), e.ln()))
         .collect();
+    (slope(&pts), pts.len())
+}
+
+/// Least-squares slope of y against x over the points (x, y).
+pub fn slope(pts: &[(f64, f64)]) -> f64 {
     let n = pts.len() as f64;
     let mx = pts.iter().map(|p| p.0).sum::<f64>() / n;
     let my = pts.iter().map(|p| p.1).sum::<f64>() / n;
     let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
     let sxx: f64 = pts.iter().map(|p| (p.0 - mx) * (p.0 - mx)).sum();
-    (sxy / sxx, pts.len())
+    sxy / sxx
 }
 
 /// The asymptotic order: least-squares slope of log(err) vs log(h) over the `k` smallest step
