@@ -81,9 +81,31 @@ pub fn sweeps_converged(residual: f64, previous: f64, tolerance: f64) -> bool {
 /// The [`Error::NonFinite`] of a diverging stage iteration.
 const DIVERGED: &str = "stage values (the stage iteration diverged)";
 
+/// The [`Error::NonFinite`] of g at a stage.
+const G_NONFINITE: &str = "g(Y) at a stage";
+
 /// The [`Error::NonFinite`] of g at the stages of an iteration that was diverging.
 const G_DIVERGED: &str =
     "g(Y) at the iterates of a diverging stage iteration (last update >= half the stages)";
+
+/// The [`Error::NonFinite`] message for g not finite at stages that the last sweep moved by
+/// `residual`: g overflowing at stages that moved by half their size or more (a relative update
+/// tends to 1 as the iterates blow up) is most likely the iteration diverging (e.g. a stiff g
+/// with fixed-point sweeps) rather than a fault of g: say so.
+fn g_fault(residual: f64) -> &'static str {
+    if residual >= 0.5 {
+        G_DIVERGED
+    } else {
+        G_NONFINITE
+    }
+}
+
+/// Whether every entry of `x` is finite, without branches: `0·x` is ±0 for finite x and NaN
+/// for ±∞ and NaN, so the sum is 0 exactly when all are finite.
+#[inline(always)]
+pub(crate) fn all_finite(x: &[f64]) -> bool {
+    x.iter().fold(0.0, |acc, v| acc + 0.0 * v) == 0.0
+}
 
 /// What to do when the stage equations have not converged after the allowed sweeps.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -307,7 +329,7 @@ fn accumulate(w: &[f64], r: usize, s: usize, g: &[f64], m: &mut [f64], d: usize)
 }
 
 /// Mutable views of a stepper's stage state: y₀ (d), stages and their next iterate (s·d),
-/// g at the stages (s·d), moments (r·d), each stage or moment contiguous.
+/// g at the stages (s·d), moments (r·d), each stage or moment contiguous, and scratch.
 pub struct BufferParts<'a> {
     /// The state at the start of the step.
     pub y0: &'a mut [f64],
@@ -325,6 +347,9 @@ pub struct BufferParts<'a> {
     pub last: &'a mut [f64],
     /// The rounding error of the last step's compensated update (d), carried into the next.
     pub comp: &'a mut [f64],
+    /// Scratch for the end of a step (3d): the double-double propagated state and the
+    /// propagated rounding error.
+    pub tmp: &'a mut [f64],
 }
 
 /// Storage for the stage state of a [`Stepper`].
@@ -336,8 +361,16 @@ pub trait Buffers: Sized {
     fn with_sizes(r: usize, s: usize, d: usize) -> Result<Self>;
     /// The dimension d.
     fn dim(&self) -> usize;
-    /// All buffers, mutably.
-    fn parts(&mut self) -> BufferParts<'_>;
+    /// Calls `f` with all buffers, mutably. Fixed-size storage hands out the per-step state
+    /// (stages, their next iterate, the propagated starts, g) as arrays local to the call, so
+    /// that the compiler can keep them in registers; their contents are not kept from one call
+    /// to the next (the step does not need them).
+    fn with_parts<R>(&mut self, f: impl FnOnce(BufferParts<'_>) -> R) -> R;
+    /// Whether the stages, their next iterate and g are local arrays (see
+    /// [`with_parts`](Self::with_parts)). The step then lets only `props` and `tmp` reach
+    /// functions that are not inlined (the φ-bank), routing their results through a copy, so
+    /// that the others can stay in registers.
+    const LOCAL_STAGES: bool = false;
     /// y₀ of the last step.
     fn y0(&self) -> &[f64];
     /// The moments of the last step.
@@ -361,6 +394,7 @@ pub struct VecBuffers {
     moments: Vec<f64>,
     last: Vec<f64>,
     comp: Vec<f64>,
+    tmp: Vec<f64>,
 }
 
 impl Buffers for VecBuffers {
@@ -374,13 +408,14 @@ impl Buffers for VecBuffers {
             moments: vec![0.0; r * d],
             last: vec![0.0; d],
             comp: vec![0.0; d],
+            tmp: vec![0.0; 3 * d],
         })
     }
     fn dim(&self) -> usize {
         self.y0.len()
     }
-    fn parts(&mut self) -> BufferParts<'_> {
-        BufferParts {
+    fn with_parts<R>(&mut self, f: impl FnOnce(BufferParts<'_>) -> R) -> R {
+        f(BufferParts {
             y0: &mut self.y0,
             stages: &mut self.stages,
             new_stages: &mut self.new_stages,
@@ -389,7 +424,8 @@ impl Buffers for VecBuffers {
             moments: &mut self.moments,
             last: &mut self.last,
             comp: &mut self.comp,
-        }
+            tmp: &mut self.tmp,
+        })
     }
     fn y0(&self) -> &[f64] {
         &self.y0
@@ -399,15 +435,12 @@ impl Buffers for VecBuffers {
     }
 }
 
-/// Fixed-size buffers for dimension `D`, `S` stages and `R` moments: arrays inside the
-/// stepper, no heap.
+/// Fixed-size buffers for dimension `D`, `S` stages and `R` moments: what a step hands on (y₀,
+/// the moments, the end state and its rounding error) in arrays inside the stepper, the stage
+/// state in arrays on the stack of each step (see [`Buffers::with_parts`]); no heap.
 #[derive(Clone, Debug)]
 pub struct StaticBuffers<const D: usize, const S: usize, const R: usize> {
     y0: [f64; D],
-    stages: [[f64; D]; S],
-    new_stages: [[f64; D]; S],
-    props: [[f64; D]; S],
-    g: [[f64; D]; S],
     moments: [[f64; D]; R],
     last: [f64; D],
     comp: [f64; D],
@@ -428,10 +461,6 @@ impl<const D: usize, const S: usize, const R: usize> Buffers for StaticBuffers<D
         }
         Ok(StaticBuffers {
             y0: [0.0; D],
-            stages: [[0.0; D]; S],
-            new_stages: [[0.0; D]; S],
-            props: [[0.0; D]; S],
-            g: [[0.0; D]; S],
             moments: [[0.0; D]; R],
             last: [0.0; D],
             comp: [0.0; D],
@@ -440,18 +469,26 @@ impl<const D: usize, const S: usize, const R: usize> Buffers for StaticBuffers<D
     fn dim(&self) -> usize {
         D
     }
-    fn parts(&mut self) -> BufferParts<'_> {
-        BufferParts {
+    #[inline(always)]
+    fn with_parts<R2>(&mut self, f: impl FnOnce(BufferParts<'_>) -> R2) -> R2 {
+        let mut stages = [[0.0; D]; S];
+        let mut new_stages = [[0.0; D]; S];
+        let mut props = [[0.0; D]; S];
+        let mut g = [[0.0; D]; S];
+        let mut tmp = [[0.0; D]; 3];
+        f(BufferParts {
             y0: &mut self.y0,
-            stages: self.stages.as_flattened_mut(),
-            new_stages: self.new_stages.as_flattened_mut(),
-            props: self.props.as_flattened_mut(),
-            g: self.g.as_flattened_mut(),
+            stages: stages.as_flattened_mut(),
+            new_stages: new_stages.as_flattened_mut(),
+            props: props.as_flattened_mut(),
+            g: g.as_flattened_mut(),
             moments: self.moments.as_flattened_mut(),
             last: &mut self.last,
             comp: &mut self.comp,
-        }
+            tmp: tmp.as_flattened_mut(),
+        })
     }
+    const LOCAL_STAGES: bool = true;
     fn y0(&self) -> &[f64] {
         &self.y0
     }
@@ -786,7 +823,7 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                 found: y.len(),
             });
         }
-        if y.iter().any(|v| !v.is_finite()) {
+        if !all_finite(y) {
             return Err(Error::NonFinite("state y"));
         }
         let Stepper {
@@ -803,213 +840,243 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             newton,
             ..
         } = self;
-        let BufferParts {
-            y0,
-            stages,
-            new_stages,
-            props,
-            g,
-            moments,
-            last,
-            comp,
-        } = buf.parts();
-        // Only a completed step that ended exactly at y may seed the predictor or hand on its
-        // rounding error; a failed step leaves no usable previous step.
-        let continuing = std::mem::take(have_previous) && *last == *y;
-        if !continuing {
-            comp.fill(0.0);
-        }
-        let extrapolate = continuing && settings.predictor == Predictor::Extrapolate;
-        let mut jacobian_evals = 0;
-        let lu = if settings.solver == StageSolver::Newton {
-            let nw = newton.get_or_insert_with(|| {
-                // The fused sweeps' stage matrices where there are some (the same numbers).
-                let q = match fused {
-                    Some(q) => q.clone(),
-                    None => stage_matrices(&*kernel, &*bank, coef, ws, d),
-                };
-                Box::new(NewtonState::new(q, d))
-            });
-            // The Jacobian of g at y₀: the system's, or forward differences.
-            if !system.jacobian(y, &mut nw.jac, scratch) {
-                system.nonlinear(y, &mut nw.g0, scratch);
-                jacobian_evals = 1 + d;
-                for l in 0..d {
-                    nw.yp.copy_from_slice(y);
-                    let step = f64::EPSILON.sqrt() * y[l].abs().max(1.0);
-                    nw.yp[l] += step;
-                    let step = nw.yp[l] - y[l];
-                    system.nonlinear(&nw.yp, &mut nw.gp, scratch);
-                    for (t, (a, b)) in nw.gp.iter().zip(&nw.g0).enumerate() {
-                        nw.jac[(t, l)] = (a - b) / step;
+        buf.with_parts(|parts| {
+            let BufferParts {
+                y0,
+                stages,
+                new_stages,
+                props,
+                g,
+                moments,
+                last,
+                comp,
+                tmp,
+            } = parts;
+            // Only a completed step that ended exactly at y may seed the predictor or hand on its
+            // rounding error; a failed step leaves no usable previous step.
+            let continuing = std::mem::take(have_previous) && *last == *y;
+            if !continuing {
+                comp.fill(0.0);
+            }
+            let extrapolate = continuing && settings.predictor == Predictor::Extrapolate;
+            let mut jacobian_evals = 0;
+            let lu = if settings.solver == StageSolver::Newton {
+                let nw = newton.get_or_insert_with(|| {
+                    // The fused sweeps' stage matrices where there are some (the same numbers).
+                    let q = match fused {
+                        Some(q) => q.clone(),
+                        None => stage_matrices(&*kernel, &*bank, coef, ws, d),
+                    };
+                    Box::new(NewtonState::new(q, d))
+                });
+                // The Jacobian of g at y₀: the system's, or forward differences.
+                if !system.jacobian(y, &mut nw.jac, scratch) {
+                    system.nonlinear(y, &mut nw.g0, scratch);
+                    jacobian_evals = 1 + d;
+                    for l in 0..d {
+                        nw.yp.copy_from_slice(y);
+                        let step = f64::EPSILON.sqrt() * y[l].abs().max(1.0);
+                        nw.yp[l] += step;
+                        let step = nw.yp[l] - y[l];
+                        system.nonlinear(&nw.yp, &mut nw.gp, scratch);
+                        for (t, (a, b)) in nw.gp.iter().zip(&nw.g0).enumerate() {
+                            nw.jac[(t, l)] = (a - b) / step;
+                        }
                     }
                 }
+                if nw.jac.shape() != (d, d) {
+                    let found = nw.jac.nrows() * nw.jac.ncols();
+                    nw.jac = nalgebra::DMatrix::zeros(d, d);
+                    return Err(Error::DimensionMismatch {
+                        what: "Jacobian of g (d × d entries)",
+                        expected: d * d,
+                        found,
+                    });
+                }
+                if nw.jac.iter().any(|v| !v.is_finite()) {
+                    return Err(Error::NonFinite("Jacobian of g at y₀"));
+                }
+                // I − ∂Φ/∂Y at y₀: block (i, k) = δ_ik I − Q_ik J.
+                let mut nm = nalgebra::DMatrix::<f64>::identity(s * d, s * d);
+                for i in 0..s {
+                    for k in 0..s {
+                        let q = &nw.q[(i * s + k) * d * d..(i * s + k + 1) * d * d];
+                        let block = nalgebra::DMatrixView::from_slice(q, d, d) * &nw.jac;
+                        let mut view = nm.view_mut((i * d, k * d), (d, d));
+                        view -= block;
+                    }
+                }
+                let lu = nm.lu();
+                if !lu.is_invertible() {
+                    return Err(Error::Numerical(
+                        "the Newton matrix of the stage equations is singular".into(),
+                    ));
+                }
+                Some(lu)
+            } else {
+                None
+            };
+            // g at every stage. Not checked here: a non-finite g makes the next sweep's stages
+            // non-finite, which the residual catches, or, after the last sweep, y₁ (both then
+            // check g to name the cause); only g(y₀) is checked at once.
+            let eval_all = |stages: &[f64], g: &mut [f64], scratch: &mut [f64]| {
+                kernel.each_stage(|j| {
+                    let at = j * d..(j + 1) * d;
+                    system.nonlinear(&stages[at.clone()], &mut g[at], scratch);
+                    Ok(())
+                })
+            };
+            let mut g_evals;
+            if extrapolate {
+                // Start: the previous step's continuous solution at τ = 1 + cᵢ (y₀ and the
+                // moments still hold that step's values).
+                let pred = (s + 1) * m..(2 * s + 1) * m;
+                if B::LOCAL_STAGES {
+                    bank.combine(s + 1..2 * s + 1, y0, moments, &coef[pred], props, ws);
+                    stages.copy_from_slice(props);
+                } else {
+                    bank.combine(s + 1..2 * s + 1, y0, moments, &coef[pred], stages, ws);
+                }
+                eval_all(stages, g, scratch)?;
+                if !all_finite(g) {
+                    return Err(Error::NonFinite(G_NONFINITE));
+                }
+                g_evals = s;
+                y0.copy_from_slice(y);
+            } else {
+                y0.copy_from_slice(y);
+                // Start: every stage at y₀, g(y₀) once.
+                for j in 0..s {
+                    stages[j * d..(j + 1) * d].copy_from_slice(y);
+                }
+                let (g0, rest) = g.split_at_mut(d);
+                system.nonlinear(y, g0, scratch);
+                if !all_finite(g0) {
+                    return Err(Error::NonFinite(G_NONFINITE));
+                }
+                for gj in rest.chunks_exact_mut(d) {
+                    gj.copy_from_slice(g0);
+                }
+                g_evals = 1;
             }
-            if nw.jac.shape() != (d, d) {
-                let found = nw.jac.nrows() * nw.jac.ncols();
-                nw.jac = nalgebra::DMatrix::zeros(d, d);
-                return Err(Error::DimensionMismatch {
-                    what: "Jacobian of g (d × d entries)",
-                    expected: d * d,
-                    found,
+            g_evals += jacobian_evals;
+            let mut sweeps = 0;
+            let mut previous = f64::INFINITY;
+            let fused = fused.as_deref();
+            if fused.is_some() {
+                // e^{cᵢhA} y₀, once per step.
+                bank.combine(0..s, y0, &[], &[], props, ws);
+            }
+            let (residual, converged) = loop {
+                if let Some(mats) = fused {
+                    B::fused_sweep(mats, props, g, new_stages, s, d);
+                } else {
+                    kernel.legendre_moments(g, moments, d);
+                    if B::LOCAL_STAGES {
+                        bank.combine(0..s, y0, moments, &coef[..s * m], props, ws);
+                        new_stages.copy_from_slice(props);
+                    } else {
+                        bank.combine(0..s, y0, moments, &coef[..s * m], new_stages, ws);
+                    }
+                }
+                if let Some(lu) = &lu {
+                    // Y ← Y + (I − Φ'(y₀))⁻¹ (Φ(Y) − Y).
+                    let rhs = nalgebra::DVector::from_iterator(
+                        s * d,
+                        new_stages.iter().zip(stages.iter()).map(|(a, b)| a - b),
+                    );
+                    let delta = lu.solve(&rhs).unwrap_or(rhs);
+                    for ((n, y), dl) in new_stages.iter_mut().zip(stages.iter()).zip(delta.iter()) {
+                        *n = y + dl;
+                    }
+                }
+                // The scaled max-norm of the update. max |Yᵢ| is taken over the bit patterns:
+                // for non-negative floats they order as the values do, and |NaN| orders above
+                // ∞, so a NaN or infinite stage makes the residual NaN (`f64::max` would skip
+                // NaN); the update's max can skip it (comparisons are cheaper).
+                let (mut diff, mut mag) = (0.0_f64, 1.0_f64.to_bits());
+                for (a, b) in new_stages.iter().zip(stages.iter()) {
+                    let t = (a - b).abs();
+                    if t > diff {
+                        diff = t;
+                    }
+                    mag = mag.max(a.abs().to_bits());
+                }
+                let residual = diff / f64::from_bits(mag);
+                // A copy, not a swap of the two slices: fixed-size stage arrays then stay in
+                // registers.
+                stages.copy_from_slice(new_stages);
+                sweeps += 1;
+                if !residual.is_finite() {
+                    return Err(Error::NonFinite(if all_finite(g) {
+                        DIVERGED
+                    } else {
+                        g_fault(previous)
+                    }));
+                }
+                eval_all(stages, g, scratch)?;
+                g_evals += s;
+                if sweeps_converged(residual, previous, settings.tolerance) {
+                    break (residual, true);
+                }
+                if sweeps >= settings.max_sweeps {
+                    break (residual, false);
+                }
+                previous = residual;
+            };
+            if !converged && settings.on_limit == SweepLimit::Error {
+                if !all_finite(g) {
+                    return Err(Error::NonFinite(g_fault(residual)));
+                }
+                return Err(Error::NoConvergence {
+                    sweeps,
+                    residual,
+                    tolerance: settings.tolerance,
                 });
             }
-            if nw.jac.iter().any(|v| !v.is_finite()) {
-                return Err(Error::NonFinite("Jacobian of g at y₀"));
-            }
-            // I − ∂Φ/∂Y at y₀: block (i, k) = δ_ik I − Q_ik J.
-            let mut nm = nalgebra::DMatrix::<f64>::identity(s * d, s * d);
-            for i in 0..s {
-                for k in 0..s {
-                    let q = &nw.q[(i * s + k) * d * d..(i * s + k + 1) * d * d];
-                    let block = nalgebra::DMatrixView::from_slice(q, d, d) * &nw.jac;
-                    let mut view = nm.view_mut((i * d, k * d), (d, d));
-                    view -= block;
+            kernel.legendre_moments(g, moments, d);
+            let (hi, rest) = tmp.split_at_mut(d);
+            let (lo, ec) = rest.split_at_mut(d);
+            if settings.compensated && bank.propagate_dd(s, y0, hi, lo) {
+                // y₁ = e^{hA} y₀ (double-double) + N + e^{hA} c, where N is the nonlinear part and
+                // c the rounding error of the previous y₁ (compensated summation). Rounding the
+                // f64 state the same way every period of an oscillation, and the f64 propagator,
+                // would otherwise make the energy drift linearly (≈ 1e−16 per step).
+                last.fill(0.0);
+                bank.combine(s..s + 1, last, moments, &coef[s * m..(s + 1) * m], y, ws);
+                bank.apply(s, 0, comp, ec, ws);
+                for ((((yv, c), h), l), e) in y
+                    .iter_mut()
+                    .zip(comp.iter_mut())
+                    .zip(hi.iter())
+                    .zip(lo.iter())
+                    .zip(ec.iter())
+                {
+                    let (sum, err) = two_sum(*h, *l + *yv + *e);
+                    *yv = sum;
+                    *c = err;
                 }
-            }
-            let lu = nm.lu();
-            if !lu.is_invertible() {
-                return Err(Error::Numerical(
-                    "the Newton matrix of the stage equations is singular".into(),
-                ));
-            }
-            Some(lu)
-        } else {
-            None
-        };
-        let mut eval_g = |stages: &[f64], g: &mut [f64], j: usize| -> Result<()> {
-            let out = &mut g[j * d..(j + 1) * d];
-            system.nonlinear(&stages[j * d..(j + 1) * d], out, scratch);
-            if out.iter().any(|v| !v.is_finite()) {
-                return Err(Error::NonFinite("g(Y) at a stage"));
-            }
-            Ok(())
-        };
-        let mut g_evals;
-        if extrapolate {
-            // Start: the previous step's continuous solution at τ = 1 + cᵢ (y₀ and the
-            // moments still hold that step's values).
-            let pred = (s + 1) * m..(2 * s + 1) * m;
-            bank.combine(s + 1..2 * s + 1, y0, moments, &coef[pred], stages, ws);
-            kernel.each_stage(|j| eval_g(stages, g, j))?;
-            g_evals = s;
-            y0.copy_from_slice(y);
-        } else {
-            y0.copy_from_slice(y);
-            // Start: every stage at y₀, g(y₀) once.
-            for j in 0..s {
-                stages[j * d..(j + 1) * d].copy_from_slice(y);
-            }
-            eval_g(stages, g, 0)?;
-            for j in 1..s {
-                let (first, rest) = g.split_at_mut(j * d);
-                rest[..d].copy_from_slice(&first[..d]);
-            }
-            g_evals = 1;
-        }
-        g_evals += jacobian_evals;
-        let mut sweeps = 0;
-        let mut previous = f64::INFINITY;
-        let mut stages: &mut [f64] = stages;
-        let mut new_stages: &mut [f64] = new_stages;
-        let fused = fused.as_deref();
-        if fused.is_some() {
-            // e^{cᵢhA} y₀, once per step.
-            bank.combine(0..s, y0, &[], &[], props, ws);
-        }
-        let (residual, converged) = loop {
-            if let Some(mats) = fused {
-                B::fused_sweep(mats, props, g, new_stages, s, d);
             } else {
-                kernel.legendre_moments(g, moments, d);
-                bank.combine(0..s, y0, moments, &coef[..s * m], new_stages, ws);
+                bank.combine(s..s + 1, y0, moments, &coef[s * m..(s + 1) * m], y, ws);
             }
-            if let Some(lu) = &lu {
-                // Y ← Y + (I − Φ'(y₀))⁻¹ (Φ(Y) − Y).
-                let rhs = nalgebra::DVector::from_iterator(
-                    s * d,
-                    new_stages.iter().zip(stages.iter()).map(|(a, b)| a - b),
-                );
-                let delta = lu.solve(&rhs).unwrap_or(rhs);
-                for ((n, y), dl) in new_stages.iter_mut().zip(stages.iter()).zip(delta.iter()) {
-                    *n = y + dl;
-                }
-            }
-            let mut diff: f64 = 0.0;
-            let mut mag: f64 = 1.0;
-            for (a, b) in new_stages.iter().zip(stages.iter()) {
-                diff = diff.max((a - b).abs());
-                mag = mag.max(a.abs());
-            }
-            let residual = diff / mag;
-            std::mem::swap(&mut stages, &mut new_stages);
-            sweeps += 1;
-            if !residual.is_finite() {
-                return Err(Error::NonFinite(DIVERGED));
-            }
-            // g overflowing at stages that moved by half their size or more (a relative update
-            // tends to 1 as the iterates blow up) is most likely the iteration diverging (e.g. a
-            // stiff g with fixed-point sweeps) rather than a fault of g: say so.
-            kernel.each_stage(|j| eval_g(stages, g, j)).map_err(|e| {
-                if residual >= 0.5 {
-                    Error::NonFinite(G_DIVERGED)
+            if !all_finite(y) {
+                y.copy_from_slice(y0);
+                // g is not checked per sweep: a non-finite g makes the next stages non-finite
+                // (caught by the residual) or, at the last sweep, y₁.
+                return Err(Error::NonFinite(if all_finite(g) {
+                    "new state y₁"
                 } else {
-                    e
-                }
-            })?;
-            g_evals += s;
-            if sweeps_converged(residual, previous, settings.tolerance) {
-                break (residual, true);
+                    g_fault(residual)
+                }));
             }
-            if sweeps >= settings.max_sweeps {
-                break (residual, false);
-            }
-            previous = residual;
-        };
-        if !converged && settings.on_limit == SweepLimit::Error {
-            return Err(Error::NoConvergence {
+            last.copy_from_slice(y);
+            *have_previous = true;
+            Ok(StepReport {
                 sweeps,
                 residual,
-                tolerance: settings.tolerance,
-            });
-        }
-        kernel.legendre_moments(g, moments, d);
-        let (hi, _) = stages.split_at_mut(d);
-        let (lo, _) = g.split_at_mut(d);
-        if settings.compensated && bank.propagate_dd(s, y0, hi, lo) {
-            // y₁ = e^{hA} y₀ (double-double) + N + e^{hA} c, where N is the nonlinear part and
-            // c the rounding error of the previous y₁ (compensated summation). Rounding the
-            // f64 state the same way every period of an oscillation, and the f64 propagator,
-            // would otherwise make the energy drift linearly (≈ 1e−16 per step).
-            last.fill(0.0);
-            bank.combine(s..s + 1, last, moments, &coef[s * m..(s + 1) * m], y, ws);
-            let (ec, _) = new_stages.split_at_mut(d);
-            bank.apply(s, 0, comp, ec, ws);
-            for ((((yv, c), h), l), e) in y
-                .iter_mut()
-                .zip(comp.iter_mut())
-                .zip(hi.iter())
-                .zip(lo.iter())
-                .zip(ec.iter())
-            {
-                let (sum, err) = two_sum(*h, *l + *yv + *e);
-                *yv = sum;
-                *c = err;
-            }
-        } else {
-            bank.combine(s..s + 1, y0, moments, &coef[s * m..(s + 1) * m], y, ws);
-        }
-        if y.iter().any(|v| !v.is_finite()) {
-            y.copy_from_slice(y0);
-            return Err(Error::NonFinite("new state y₁"));
-        }
-        last.copy_from_slice(y);
-        *have_previous = true;
-        Ok(StepReport {
-            sweeps,
-            residual,
-            g_evals,
-            converged,
+                g_evals,
+                converged,
+            })
         })
     }
 

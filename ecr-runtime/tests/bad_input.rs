@@ -4,12 +4,16 @@
 //! the name of the offending quantity.
 
 use ecr_runtime::Error;
+use ecr_runtime::ecr_method;
 use ecr_runtime::integrate::{IntegrateOptions, integrate};
 use ecr_runtime::operator::{Circulant, Dense, DenseStatic, Diagonal, Scalar, Symmetric};
 use ecr_runtime::problems::Duffing;
 use ecr_runtime::stepper::{EcStepper, SolverSettings};
 use ecr_runtime::system::{GradientFlow, Hamiltonian, Semilinear, System};
 use nalgebra::{DMatrix, SMatrix};
+use std::cell::Cell;
+
+ecr_method!(r = 2);
 
 const BAD: [f64; 3] = [f64::NAN, f64::INFINITY, f64::NEG_INFINITY];
 
@@ -150,6 +154,68 @@ fn non_finite_nonlinearity_is_named_and_leaves_the_state_alone() {
         .unwrap();
         assert_eq!(st.step(&mut y), Err(Error::NonFinite("g(Y) at a stage")));
         assert_eq!(y, p.initial_value());
+    }
+}
+
+/// g is not checked after every sweep (the residual and y₁ are): a non-finite g at any
+/// evaluation of a step, the last sweep's included, and a g that maps non-finite stages back to
+/// finite values, are still reported as g's fault, by the run-time stepper and by a macro
+/// stepper (whose stage arrays are local), with the state unchanged.
+#[test]
+fn non_finite_g_at_any_sweep_is_named() {
+    let p = Duffing::default();
+    let a = p.linear_matrix();
+    let sa: SMatrix<f64, 2, 2> = SMatrix::from_iterator(a.iter().copied());
+    // The evaluations of g in one good step.
+    let mut probe = EcStepper::new(
+        Semilinear::new(Dense::new(a.clone()).unwrap(), |y: &[f64], o: &mut [f64]| {
+            Duffing::default().nonlinear(y, o)
+        }),
+        2,
+        0.1,
+    )
+    .unwrap();
+    let evals = probe.step(&mut p.initial_value()).unwrap().g_evals;
+    assert!(evals > 4, "several sweeps ({evals} evaluations of g)");
+    for bad in BAD {
+        for sanitize in [false, true] {
+            // Evaluation `at` (counted from 1) returns `bad`; with `sanitize`, g is 0 at
+            // non-finite input (so that only the sweep after the bad value sees it).
+            for at in 1..=evals {
+                let calls = Cell::new(0);
+                let g = |y: &[f64], o: &mut [f64]| {
+                    calls.set(calls.get() + 1);
+                    if sanitize && y.iter().any(|v| !v.is_finite()) {
+                        o.fill(0.0);
+                    } else {
+                        Duffing::default().nonlinear(y, o);
+                        if calls.get() == at {
+                            o[1] = bad;
+                        }
+                    }
+                };
+                let mut rt =
+                    EcStepper::new(Semilinear::new(Dense::new(a.clone()).unwrap(), &g), 2, 0.1)
+                        .unwrap();
+                let mut y = p.initial_value();
+                assert_eq!(
+                    rt.step(&mut y),
+                    Err(Error::NonFinite("g(Y) at a stage")),
+                    "run-time: g = {bad} at evaluation {at}, sanitize {sanitize}"
+                );
+                assert_eq!(y, p.initial_value());
+                calls.set(0);
+                let mut fixed: Ec2<_, 2> =
+                    Ec2::fixed(Semilinear::new(DenseStatic::new(sa).unwrap(), &g), 0.1).unwrap();
+                let mut y = [p.initial_value()[0], p.initial_value()[1]];
+                assert_eq!(
+                    fixed.step(&mut y),
+                    Err(Error::NonFinite("g(Y) at a stage")),
+                    "macro: g = {bad} at evaluation {at}, sanitize {sanitize}"
+                );
+                assert_eq!(y.as_slice(), p.initial_value().as_slice());
+            }
+        }
     }
 }
 
