@@ -4,7 +4,10 @@
 //! `cargo bench --bench steppers`. Each iteration is 100 steps of r = 3 (order 6), h = 0.01,
 //! from the same start, on Duffing (ω = 5, k = 0.07) and the conservative wind problem (d = 2).
 //! The macro stepper is also timed with the plain f64 update (`compensated: false`): the price
-//! of the compensated double-double update.
+//! of the compensated double-double update. After criterion's runs, the ratios are measured
+//! again paired: the same iterations interleaved in rounds, the fastest of each kept, printed
+//! as one line per problem (robust on a shared machine, where criterion's separate runs of a
+//! few seconds each can see different load).
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use ecr::ecr_method;
@@ -14,6 +17,7 @@ use ecr::runtime::stepper::{Buffers, EcStepper, SolverSettings, StaticBuffers, S
 use ecr::runtime::system::Semilinear;
 use nalgebra::{DMatrix, SMatrix};
 use std::hint::black_box;
+use std::time::Instant;
 
 ecr_method!(r = 3);
 
@@ -67,79 +71,116 @@ fn bench_problem<G: Fn(&[f64], &mut [f64]) + Copy>(
     let (mut props, mut stages, moments) = ([0.0; 6], [0.0; 6], [0.1; 6]);
     let (mut gout, mut hi, mut lo) = ([0.0; 2], [0.0; 2], [0.0; 2]);
     let g_in = [0.3; 6];
+
+    // One iteration of each benchmark: STEPS steps from y0, or the kernel cost of STEPS steps.
+    let mut run_macro = move || {
+        let mut y = y0;
+        for _ in 0..STEPS {
+            fixed.step(black_box(&mut y)).unwrap();
+        }
+        y
+    };
+    let mut run_plain = move || {
+        let mut y = y0;
+        for _ in 0..STEPS {
+            fixed_plain.step(black_box(&mut y)).unwrap();
+        }
+        y
+    };
+    let mut run_rt_dense = move || {
+        let mut y = y0.to_vec();
+        for _ in 0..STEPS {
+            rt_dense.step(black_box(&mut y)).unwrap();
+        }
+        y
+    };
+    let mut run_rt_static = move || {
+        let mut y = y0;
+        for _ in 0..STEPS {
+            rt_static.step(black_box(&mut y)).unwrap();
+        }
+        y
+    };
+    let mut run_kernel = move || {
+        for _ in 0..g_evals {
+            g(black_box(&y0), black_box(&mut gout));
+        }
+        for _ in 0..STEPS {
+            bank.combine(0..s, black_box(&y0), &[], &[], &mut props, &mut ());
+        }
+        for _ in 0..sweeps {
+            // The stepper's own fused sweep for its buffers (constant s and d, unrolled).
+            StaticBuffers::<2, 3, 3>::fused_sweep(
+                &mats,
+                &props,
+                black_box(&g_in),
+                &mut stages,
+                s,
+                2,
+            );
+        }
+        for _ in 0..STEPS {
+            bank.combine(
+                s..s + 1,
+                black_box(&y0),
+                &moments,
+                &coef,
+                &mut gout,
+                &mut (),
+            );
+            bank.propagate_dd(s, black_box(&y0), &mut hi, &mut lo);
+            bank.apply(s, 0, black_box(&lo), &mut hi, &mut ());
+        }
+        (stages, gout, hi)
+    };
+
     let mut group = c.benchmark_group(name);
-    group.bench_function("macro Ec3<_, 2> (DenseStatic)", |b| {
-        b.iter(|| {
-            let mut y = y0;
-            for _ in 0..STEPS {
-                fixed.step(black_box(&mut y)).unwrap();
-            }
-            y
-        })
-    });
+    group.bench_function("macro Ec3<_, 2> (DenseStatic)", |b| b.iter(&mut run_macro));
     group.bench_function("macro Ec3<_, 2> (DenseStatic), plain f64 update", |b| {
-        b.iter(|| {
-            let mut y = y0;
-            for _ in 0..STEPS {
-                fixed_plain.step(black_box(&mut y)).unwrap();
-            }
-            y
-        })
+        b.iter(&mut run_plain)
     });
     group.bench_function("run-time EcStepper r=3 (Dense)", |b| {
-        b.iter(|| {
-            let mut y = y0.to_vec();
-            for _ in 0..STEPS {
-                rt_dense.step(black_box(&mut y)).unwrap();
-            }
-            y
-        })
+        b.iter(&mut run_rt_dense)
     });
     group.bench_function("run-time EcStepper r=3 (DenseStatic)", |b| {
-        b.iter(|| {
-            let mut y = y0;
-            for _ in 0..STEPS {
-                rt_static.step(black_box(&mut y)).unwrap();
-            }
-            y
-        })
+        b.iter(&mut run_rt_static)
     });
     group.bench_function("kernel cost (g + operator applications)", |b| {
-        b.iter(|| {
-            for _ in 0..g_evals {
-                g(black_box(&y0), black_box(&mut gout));
-            }
-            for _ in 0..STEPS {
-                bank.combine(0..s, black_box(&y0), &[], &[], &mut props, &mut ());
-            }
-            for _ in 0..sweeps {
-                // The stepper's own fused sweep for its buffers (constant s and d, unrolled).
-                StaticBuffers::<2, 3, 3>::fused_sweep(
-                    &mats,
-                    &props,
-                    black_box(&g_in),
-                    &mut stages,
-                    s,
-                    2,
-                );
-            }
-            for _ in 0..STEPS {
-                bank.combine(
-                    s..s + 1,
-                    black_box(&y0),
-                    &moments,
-                    &coef,
-                    &mut gout,
-                    &mut (),
-                );
-                bank.propagate_dd(s, black_box(&y0), &mut hi, &mut lo);
-                bank.apply(s, 0, black_box(&lo), &mut hi, &mut ());
-            }
-            (stages, gout, hi)
-        })
+        b.iter(&mut run_kernel)
     });
     group.finish();
     println!("{name}: {STEPS} steps = {g_evals} g-evaluations, {sweeps} sweeps");
+
+    // The ratios again, paired: the iterations above interleaved in rounds, each timed alone,
+    // the fastest of PAIRED_ROUNDS kept (a shared machine's interruptions only add time, and
+    // interleaving exposes every benchmark to the same conditions).
+    let mut best = [f64::INFINITY; 4];
+    for _ in 0..PAIRED_ROUNDS {
+        best[0] = best[0].min(time_once(&mut run_macro));
+        best[1] = best[1].min(time_once(&mut run_rt_dense));
+        best[2] = best[2].min(time_once(&mut run_kernel));
+        best[3] = best[3].min(time_once(&mut run_plain));
+    }
+    let [mac, rt, kernel, plain] = best;
+    println!(
+        "{name} paired (fastest of {PAIRED_ROUNDS} interleaved rounds, per {STEPS} steps): macro \
+         {mac:.2} µs, run-time (Dense) {rt:.2} µs, kernel cost {kernel:.2} µs, macro plain \
+         update {plain:.2} µs; run-time / macro = {:.2}, macro / kernel cost = {:.2}, \
+         compensated / plain = {:.2}",
+        rt / mac,
+        mac / kernel,
+        mac / plain
+    );
+}
+
+/// Rounds of the paired measurement.
+const PAIRED_ROUNDS: usize = 2000;
+
+/// Microseconds of one call of `f`.
+fn time_once<R>(f: &mut impl FnMut() -> R) -> f64 {
+    let t = Instant::now();
+    black_box(f());
+    t.elapsed().as_secs_f64() * 1e6
 }
 
 fn steppers(c: &mut Criterion) {

@@ -34,7 +34,8 @@
 //! [`Kernel`] (r, s, the nodes, and the moment accumulation L = ℓ g: looped over run-time
 //! coefficients in [`RuntimeKernel`], unrolled over `const` coefficients in the kernels that
 //! `ecr_method!` emits) and the [`Buffers`] holding the stage state ([`VecBuffers`], allocated
-//! once; [`StaticBuffers`], fixed-size arrays inside the stepper). [`EcStepper`] is the
+//! once; [`StaticBuffers`], fixed-size arrays: what a step hands on inside the stepper, the
+//! stage state local to each step, so that it stays in registers). [`EcStepper`] is the
 //! run-time-r form.
 
 use crate::operator::{LinearOperator, PhiBank};

@@ -168,9 +168,10 @@ fn non_finite_g_at_any_sweep_is_named() {
     let sa: SMatrix<f64, 2, 2> = SMatrix::from_iterator(a.iter().copied());
     // The evaluations of g in one good step.
     let mut probe = EcStepper::new(
-        Semilinear::new(Dense::new(a.clone()).unwrap(), |y: &[f64], o: &mut [f64]| {
-            Duffing::default().nonlinear(y, o)
-        }),
+        Semilinear::new(
+            Dense::new(a.clone()).unwrap(),
+            |y: &[f64], o: &mut [f64]| Duffing::default().nonlinear(y, o),
+        ),
         2,
         0.1,
     )
