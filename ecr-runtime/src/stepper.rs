@@ -103,9 +103,20 @@ fn g_fault(residual: f64) -> &'static str {
 
 /// Whether every entry of `x` is finite, without branches: `0·x` is ±0 for finite x and NaN
 /// for ±∞ and NaN, so the sum is 0 exactly when all are finite.
+///
+/// Four interleaved sums, so that long vectors (a whole state of a large system) are not
+/// held up by the latency of one chain of additions.
 #[inline(always)]
 pub(crate) fn all_finite(x: &[f64]) -> bool {
-    x.iter().fold(0.0, |acc, v| acc + 0.0 * v) == 0.0
+    let mut acc = [0.0_f64; 4];
+    let mut quads = x.chunks_exact(4);
+    for q in &mut quads {
+        for (a, v) in acc.iter_mut().zip(q) {
+            *a += 0.0 * v;
+        }
+    }
+    let rest = quads.remainder().iter().fold(0.0, |a, v| a + 0.0 * v);
+    (acc[0] + acc[1]) + (acc[2] + acc[3]) + rest == 0.0
 }
 
 /// What to do when the stage equations have not converged after the allowed sweeps.
@@ -1117,7 +1128,24 @@ fn kernel_coefficients(h: f64, taus: &[f64], r: usize) -> Vec<f64> {
 
 #[cfg(test)]
 mod tests {
-    use super::sweeps_converged;
+    use super::{all_finite, sweeps_converged};
+
+    #[test]
+    fn finiteness_of_every_entry() {
+        for n in 0..13 {
+            let x: Vec<f64> = (0..n)
+                .map(|i| [1.5, -0.0, f64::MAX, -f64::MAX, f64::MIN_POSITIVE][i % 5])
+                .collect();
+            assert!(all_finite(&x), "n = {n}");
+            for i in 0..n {
+                for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+                    let mut y = x.clone();
+                    y[i] = bad;
+                    assert!(!all_finite(&y), "n = {n}, entry {i} = {bad}");
+                }
+            }
+        }
+    }
 
     const TOL: f64 = 1e-15;
 
