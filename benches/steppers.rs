@@ -73,34 +73,10 @@ fn bench_problem<G: Fn(&[f64], &mut [f64]) + Copy>(
     let g_in = [0.3; 6];
 
     // One iteration of each benchmark: STEPS steps from y0, or the kernel cost of STEPS steps.
-    let mut run_macro = move || {
-        let mut y = y0;
-        for _ in 0..STEPS {
-            fixed.step(black_box(&mut y)).unwrap();
-        }
-        y
-    };
-    let mut run_plain = move || {
-        let mut y = y0;
-        for _ in 0..STEPS {
-            fixed_plain.step(black_box(&mut y)).unwrap();
-        }
-        y
-    };
-    let mut run_rt_dense = move || {
-        let mut y = y0.to_vec();
-        for _ in 0..STEPS {
-            rt_dense.step(black_box(&mut y)).unwrap();
-        }
-        y
-    };
-    let mut run_rt_static = move || {
-        let mut y = y0;
-        for _ in 0..STEPS {
-            rt_static.step(black_box(&mut y)).unwrap();
-        }
-        y
-    };
+    let mut run_macro = move || run_steps(y0, |y| fixed.step(y).map(drop));
+    let mut run_plain = move || run_steps(y0, |y| fixed_plain.step(y).map(drop));
+    let mut run_rt_dense = move || run_steps(y0, |y| rt_dense.step(y).map(drop));
+    let mut run_rt_static = move || run_steps(y0, |y| rt_static.step(y).map(drop));
     let mut run_kernel = move || {
         for _ in 0..g_evals {
             g(black_box(&y0), black_box(&mut gout));
@@ -171,6 +147,18 @@ fn bench_problem<G: Fn(&[f64], &mut [f64]) + Copy>(
         mac / kernel,
         mac / plain
     );
+}
+
+/// STEPS steps of `step` from y0: one iteration of a stepper's benchmark.
+fn run_steps(
+    y0: [f64; 2],
+    mut step: impl FnMut(&mut [f64]) -> ecr::runtime::Result<()>,
+) -> [f64; 2] {
+    let mut y = y0;
+    for _ in 0..STEPS {
+        step(black_box(&mut y)).unwrap();
+    }
+    y
 }
 
 /// Rounds of the paired measurement.

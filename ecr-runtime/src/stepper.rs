@@ -89,15 +89,17 @@ const G_NONFINITE: &str = "g(Y) at a stage";
 const G_DIVERGED: &str =
     "g(Y) at the iterates of a diverging stage iteration (last update >= half the stages)";
 
-/// The [`Error::NonFinite`] message for g not finite at stages that the last sweep moved by
-/// `residual`: g overflowing at stages that moved by half their size or more (a relative update
-/// tends to 1 as the iterates blow up) is most likely the iteration diverging (e.g. a stiff g
-/// with fixed-point sweeps) rather than a fault of g: say so.
-fn g_fault(residual: f64) -> &'static str {
-    if residual >= 0.5 {
-        G_DIVERGED
-    } else {
-        G_NONFINITE
+/// The [`Error::NonFinite`] message if g is not finite at stages that the last sweep moved by
+/// `residual` (`None` if it is finite): g overflowing at stages that moved by half their size
+/// or more (a relative update tends to 1 as the iterates blow up) is most likely the iteration
+/// diverging (e.g. a stiff g with fixed-point sweeps) rather than a fault of g: say so.
+/// (Inlined: a call would make fixed-size arrays of g leave registers.)
+#[inline(always)]
+fn g_fault(g: &[f64], residual: f64) -> Option<&'static str> {
+    match (all_finite(g), residual >= 0.5) {
+        (true, _) => None,
+        (false, true) => Some(G_DIVERGED),
+        (false, false) => Some(G_NONFINITE),
     }
 }
 
@@ -1020,11 +1022,7 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                 stages.copy_from_slice(new_stages);
                 sweeps += 1;
                 if !residual.is_finite() {
-                    return Err(Error::NonFinite(if all_finite(g) {
-                        DIVERGED
-                    } else {
-                        g_fault(previous)
-                    }));
+                    return Err(Error::NonFinite(g_fault(g, previous).unwrap_or(DIVERGED)));
                 }
                 eval_all(stages, g, scratch)?;
                 g_evals += s;
@@ -1037,8 +1035,8 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                 previous = residual;
             };
             if !converged && settings.on_limit == SweepLimit::Error {
-                if !all_finite(g) {
-                    return Err(Error::NonFinite(g_fault(residual)));
+                if let Some(what) = g_fault(g, residual) {
+                    return Err(Error::NonFinite(what));
                 }
                 return Err(Error::NoConvergence {
                     sweeps,
@@ -1075,11 +1073,9 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                 y.copy_from_slice(y0);
                 // g is not checked per sweep: a non-finite g makes the next stages non-finite
                 // (caught by the residual) or, at the last sweep, y₁.
-                return Err(Error::NonFinite(if all_finite(g) {
-                    "new state y₁"
-                } else {
-                    g_fault(residual)
-                }));
+                return Err(Error::NonFinite(
+                    g_fault(g, residual).unwrap_or("new state y₁"),
+                ));
             }
             last.copy_from_slice(y);
             *have_previous = true;
