@@ -3,7 +3,7 @@
 //! Run with `--nocapture` to see the measured numbers.
 
 use ecr_runtime::Error;
-use ecr_runtime::baselines::dop853::Dop853;
+use ecr_runtime::baselines::dop853::{Dop853, Dop853Stepper};
 use ecr_runtime::baselines::exponential::{Exprb43, HochOst4};
 use ecr_runtime::integrate::{IntegrateOptions, Integrator, integrate};
 use ecr_runtime::operator::Dense;
@@ -119,8 +119,8 @@ fn hochost4_has_order_four() {
 #[test]
 fn dop853_reaches_1e10_at_t10() {
     let duffing = duffing();
-    let mut m = Dop853::new(duffing.system().unwrap(), 0.5).unwrap();
-    assert_eq!(m.tolerances(), (1e-12, 1e-12));
+    let mut m = Dop853Stepper::new(duffing.system().unwrap(), 0.5).unwrap();
+    assert_eq!(m.dop853().tolerances(), (1e-12, 1e-12));
     let mut y = duffing.initial_value();
     let report = integrate(
         &mut m,
@@ -146,6 +146,102 @@ fn dop853_reaches_1e10_at_t10() {
     assert_eq!(report.steps, 20);
     assert_eq!(report.g_evals, stats.f_evals);
     assert!(report.g_evals > 12 * 20);
+}
+
+/// One call of the crate over [0, T] (how its users call it): the same accuracy with fewer
+/// evaluations than restarting every output step; the observer sees every accepted step,
+/// in order, ending at T.
+#[test]
+fn dop853_one_call_over_the_interval() {
+    let duffing = duffing();
+    let dop = Dop853::new(duffing.system().unwrap(), 1e-12, 1e-12).unwrap();
+    let mut y = duffing.initial_value();
+    let mut times = Vec::new();
+    let stats = dop
+        .integrate_observed(0.0, 10.0, &mut y, &mut |t, _| times.push(t))
+        .unwrap();
+    let exact = duffing.exact(10.0).unwrap();
+    let err = (y[0] - exact[0]).abs().max((y[1] - exact[1]).abs());
+    println!(
+        "DOP853 one call, rtol = atol = 1e-12, T = 10: error {err:.3e}, {} f-evaluations ({} \
+         accepted, {} rejected)",
+        stats.f_evals, stats.accepted, stats.rejected
+    );
+    assert!(err <= 1e-10, "{err}");
+    assert_eq!(times.len(), stats.accepted);
+    assert!(times.windows(2).all(|w| w[0] < w[1]));
+    assert_eq!(*times.last().unwrap(), 10.0);
+    // The same run without the observer: bit-identical.
+    let mut y2 = duffing.initial_value();
+    let stats2 = dop.integrate(0.0, 10.0, &mut y2).unwrap();
+    assert_eq!((y, stats), (y2, stats2));
+    // Restarting every 0.5 time units costs evaluations (each restart ends on a shortened
+    // step and begins anew).
+    let mut m = Dop853Stepper::new(duffing.system().unwrap(), 0.5).unwrap();
+    let mut y3 = duffing.initial_value();
+    for _ in 0..20 {
+        m.step(&mut y3).unwrap();
+    }
+    assert!(
+        stats.f_evals < m.stats().f_evals,
+        "{stats:?} {:?}",
+        m.stats()
+    );
+    // Bad intervals and tolerances are errors, y unchanged.
+    let mut y4 = duffing.initial_value();
+    for (t0, t1) in [
+        (0.0, 0.0),
+        (1.0, 0.0),
+        (0.0, f64::NAN),
+        (f64::INFINITY, 1.0),
+    ] {
+        assert!(matches!(
+            dop.integrate(t0, t1, &mut y4),
+            Err(Error::InvalidInput(_))
+        ));
+    }
+    assert_eq!(y4, duffing.initial_value());
+    assert!(matches!(
+        Dop853::new(duffing.system().unwrap(), 0.0, 1e-10),
+        Err(Error::InvalidParameter(_))
+    ));
+}
+
+/// The fixed-size (SVector) and heap (DVector) paths of the crate solve the same problem:
+/// d = 5 is not in `FIXED_DIMS`, d = 4 is. Two decoupled cubic oscillators, padded by a
+/// constant component to d = 5, agree to the tolerance (not to the bit: the code's error
+/// norm divides by d, so the step sequences differ).
+#[test]
+fn dop853_fixed_and_dynamic_states_agree() {
+    use ecr_runtime::baselines::dop853::FIXED_DIMS;
+    assert!(FIXED_DIMS.contains(&4) && !FIXED_DIMS.contains(&5));
+    let run = |d: usize| {
+        let mut a = DMatrix::zeros(d, d);
+        a[(0, 1)] = 1.0;
+        a[(1, 0)] = -4.0;
+        a[(2, 3)] = 1.0;
+        a[(3, 2)] = -4.0;
+        let g = |y: &[f64], out: &mut [f64]| {
+            out.fill(0.0);
+            out[1] = -y[0].powi(3);
+            out[3] = -y[2].powi(3);
+        };
+        let dop = Dop853::new(Semilinear::new(Dense::new(a).unwrap(), g), 1e-10, 1e-10).unwrap();
+        let mut y = vec![0.0; d];
+        y[..4].copy_from_slice(&[1.0, 0.0, 0.5, 0.3]);
+        let stats = dop.integrate(0.0, 3.0, &mut y).unwrap();
+        (y[..4].to_vec(), stats)
+    };
+    let (y4, s4) = run(4);
+    let (y5, s5) = run(5);
+    let diff = y4
+        .iter()
+        .zip(&y5)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    println!("d = 4 (SVector) vs d = 5 (DVector): max difference {diff:.1e}; {s4:?} {s5:?}");
+    assert!(diff < 1e-8, "{diff}");
+    assert!(s4.accepted > 10 && s5.accepted > 10);
 }
 
 /// y' = Ay with a non-normal 3 × 3 A: both exponential methods are the exact flow.
@@ -216,17 +312,17 @@ fn bad_input_is_an_error() {
             Err(Error::InvalidStepSize(_))
         ));
         assert!(matches!(
-            Dop853::new(sys(), h),
+            Dop853Stepper::new(sys(), h),
             Err(Error::InvalidStepSize(_))
         ));
     }
     for tol in [0.0, -1e-8, f64::NAN] {
         assert!(matches!(
-            Dop853::with_tolerances(sys(), 0.1, tol, 1e-10),
+            Dop853Stepper::with_tolerances(sys(), 0.1, tol, 1e-10),
             Err(Error::InvalidParameter(_))
         ));
         assert!(matches!(
-            Dop853::with_tolerances(sys(), 0.1, 1e-10, tol),
+            Dop853Stepper::with_tolerances(sys(), 0.1, 1e-10, tol),
             Err(Error::InvalidParameter(_))
         ));
     }
@@ -235,7 +331,7 @@ fn bad_input_is_an_error() {
         Box::new(Exprb43::new(sys(), 0.1).unwrap()),
         Box::new(Exprb43::frozen(sys(), 0.1).unwrap()),
         Box::new(HochOst4::new(sys(), 0.1).unwrap()),
-        Box::new(Dop853::new(sys(), 0.1).unwrap()),
+        Box::new(Dop853Stepper::new(sys(), 0.1).unwrap()),
     ];
     for m in &mut methods {
         let mut short = [0.0];
@@ -272,7 +368,7 @@ fn bad_input_is_an_error() {
     let mut methods: Vec<Box<dyn Integrator>> = vec![
         Box::new(Exprb43::new(sys2(), 0.1).unwrap()),
         Box::new(HochOst4::new(sys2(), 0.1).unwrap()),
-        Box::new(Dop853::new(sys2(), 0.1).unwrap()),
+        Box::new(Dop853Stepper::new(sys2(), 0.1).unwrap()),
     ];
     for m in &mut methods {
         let mut y = [1.0, 0.0];

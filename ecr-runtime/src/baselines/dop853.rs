@@ -1,16 +1,23 @@
-//! DOP853 (Dormand–Prince 8(5,3), Hairer–Nørsett–Wanner) as a fixed-macro-step
-//! [`Integrator`]: what many users would pick instead of an exponential method (DESIGN.md §5).
+//! DOP853 (Dormand–Prince 8(5,3), Hairer–Nørsett–Wanner), from the `ode_solvers` crate, used
+//! the way its users use it: what many users would pick instead of an exponential method
+//! (DESIGN.md §5).
 //!
-//! Each macro step of size h integrates y' = f(y) = Ay + g(y) from 0 to h with the adaptive
-//! step-size control of the `ode_solvers` crate's [`ode_solvers::Dop853`] (relative and
-//! absolute tolerances, default 1e−12), so the macro step only fixes where the state is
-//! reported. The internal step size is carried over from one macro step to the next (the
-//! first macro step uses the code's initial step heuristic). Not allocation-free: the crate
-//! allocates its stage vectors on every call.
+//! [`Dop853::integrate`] is **one call of the crate over [t0, T]**: its own step-size control
+//! from the initial-step heuristic to the end, no restarts, and the state in a fixed-size
+//! `SVector` for the dimensions listed in [`FIXED_DIMS`] (so that no step allocates; other
+//! dimensions use the crate's `DVector`, which allocates its stage vectors as the crate
+//! does). Output is the crate's cheapest, `OutputType::Sparse` (the accepted steps, no dense
+//! output coefficients); an observer sees every accepted step through the crate's `solout`
+//! hook.
+//!
+//! [`Dop853Stepper`] adapts it to the fixed-output-step [`Integrator`] interface (one call of
+//! the crate per output step h, the internal step size carried over): it exists for
+//! comparisons that need the state at every multiple of h, and pays a restart per output
+//! step. Speed comparisons use [`Dop853::integrate`].
 
 use std::cell::{Cell, RefCell};
 
-use ode_solvers::{DVector, OutputType};
+use ode_solvers::{DVector, OutputType, SVector};
 
 use crate::integrate::Integrator;
 use crate::operator::LinearOperator;
@@ -18,115 +25,165 @@ use crate::stepper::StepReport;
 use crate::system::System;
 use crate::{Error, Result};
 
-/// Cumulative statistics of a [`Dop853`] over all its macro steps.
+/// Dimensions whose state is a fixed-size `SVector` (no allocation per step); any other
+/// dimension uses a heap `DVector`.
+pub const FIXED_DIMS: [usize; 10] = [1, 2, 3, 4, 6, 8, 12, 16, 32, 256];
+
+/// Statistics of one or more integrations.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Dop853Stats {
-    /// Evaluations of f = Ay + g (each is one evaluation of g).
+    /// Evaluations of f = Ay + g (each is one evaluation of g), the initial-step heuristic's
+    /// included.
     pub f_evals: usize,
-    /// Accepted internal steps.
+    /// Accepted steps.
     pub accepted: usize,
-    /// Rejected internal steps.
+    /// Rejected steps.
     pub rejected: usize,
 }
 
-/// f(y) = Ay + g(y) for `ode_solvers`, flagging non-finite values.
-struct Rhs<'a, S: System> {
-    system: &'a S,
-    g: &'a RefCell<Vec<f64>>,
-    scratch: &'a RefCell<Vec<f64>>,
-    non_finite: &'a Cell<bool>,
+impl Dop853Stats {
+    fn add(&mut self, other: Dop853Stats) {
+        self.f_evals += other.f_evals;
+        self.accepted += other.accepted;
+        self.rejected += other.rejected;
+    }
 }
 
-impl<S: System> Rhs<'_, S> {
+/// An observer of the accepted steps: (t, y).
+pub type Observer<'a> = &'a mut dyn FnMut(f64, &[f64]);
+
+/// f(y) = Ay + g(y) for `ode_solvers`, flagging non-finite values; `solout` calls the observer
+/// and stops the integration once a non-finite value was seen.
+struct Rhs<'a, 'o, S: System> {
+    system: &'a S,
+    /// g(y) and the system's scratch (borrowed per evaluation: `ode_solvers` passes `&self`).
+    buffers: RefCell<(Vec<f64>, Vec<f64>)>,
+    non_finite: &'a Cell<bool>,
+    observer: Option<Observer<'o>>,
+}
+
+impl<S: System> Rhs<'_, '_, S> {
+    #[inline]
     fn eval(&self, y: &[f64], dy: &mut [f64]) {
-        let mut g = self.g.borrow_mut();
-        let mut scratch = self.scratch.borrow_mut();
+        let mut buffers = self.buffers.borrow_mut();
+        let (g, scratch) = &mut *buffers;
         self.system.linear().apply(y, dy);
-        self.system.nonlinear(y, &mut g, &mut scratch);
+        self.system.nonlinear(y, g, scratch);
+        let mut finite = true;
         for (d, gi) in dy.iter_mut().zip(g.iter()) {
             *d += gi;
+            finite &= d.is_finite();
         }
-        if dy.iter().any(|v| !v.is_finite()) {
+        if !finite {
             self.non_finite.set(true);
         }
     }
-}
 
-impl<S: System> ode_solvers::System<f64, DVector<f64>> for Rhs<'_, S> {
-    fn system(&self, _x: f64, y: &DVector<f64>, dy: &mut DVector<f64>) {
-        self.eval(y.as_slice(), dy.as_mut_slice());
+    fn accepted(&mut self, t: f64, y: &[f64]) -> bool {
+        if let Some(observer) = self.observer.as_mut() {
+            observer(t, y);
+        }
+        self.non_finite.get()
     }
 }
 
-/// DOP853 with adaptive internal steps over each macro step of size h.
+impl<const N: usize, S: System> ode_solvers::System<f64, SVector<f64, N>> for Rhs<'_, '_, S> {
+    fn system(&self, _t: f64, y: &SVector<f64, N>, dy: &mut SVector<f64, N>) {
+        self.eval(y.as_slice(), dy.as_mut_slice());
+    }
+    fn solout(&mut self, t: f64, y: &SVector<f64, N>, _dy: &SVector<f64, N>) -> bool {
+        self.accepted(t, y.as_slice())
+    }
+}
+
+impl<S: System> ode_solvers::System<f64, DVector<f64>> for Rhs<'_, '_, S> {
+    fn system(&self, _t: f64, y: &DVector<f64>, dy: &mut DVector<f64>) {
+        self.eval(y.as_slice(), dy.as_mut_slice());
+    }
+    fn solout(&mut self, t: f64, y: &DVector<f64>, _dy: &DVector<f64>) -> bool {
+        self.accepted(t, y.as_slice())
+    }
+}
+
+/// DOP853 with relative and absolute tolerances on a [`System`].
 pub struct Dop853<S: System> {
     system: S,
-    h: f64,
     rtol: f64,
     atol: f64,
-    max_internal_steps: u32,
-    /// Internal step size to start the next macro step with (0: the code's heuristic).
-    h_internal: f64,
-    stats: Dop853Stats,
-    g: RefCell<Vec<f64>>,
-    scratch: RefCell<Vec<f64>>,
-    f0: Vec<f64>,
+    max_steps: u32,
+}
+
+/// What one call of the crate needs besides the right-hand side.
+struct Call {
+    t0: f64,
+    t_end: f64,
+    /// Initial step size (0: the code's heuristic).
+    h_start: f64,
+    /// Largest step size.
+    h_max: f64,
+}
+
+/// One call of `ode_solvers::Dop853` with the state type `$vec` built from `$y0`.
+macro_rules! call_crate {
+    ($self:ident, $rhs:ident, $call:ident, $y:ident, $vec:ty) => {{
+        let mut solver = ode_solvers::Dop853::from_param(
+            $rhs,
+            $call.t0,
+            $call.t_end,
+            $call.t_end - $call.t0,
+            <$vec>::from_column_slice($y),
+            $self.rtol,
+            $self.atol,
+            0.9,   // safety factor (Hairer's default)
+            0.0,   // beta: no PI control (default)
+            0.333, // fac_min (default)
+            6.0,   // fac_max (default)
+            $call.h_max,
+            $call.h_start,
+            $self.max_steps,
+            1000, // stiffness test every 1000 accepted steps (default)
+            OutputType::Sparse,
+        );
+        let result = solver.integrate();
+        let y1 = solver.y_out().last().map(|v| v.as_slice().to_vec());
+        (result, y1)
+    }};
 }
 
 impl<S: System> Dop853<S> {
-    /// DOP853 with macro step h and rtol = atol = 1e−12.
+    /// DOP853 with the given tolerances (the error of each step is measured against
+    /// `atol + rtol·|y_i|`, as in Hairer's code).
     ///
     /// # Errors
-    /// [`Error::InvalidStepSize`] if h is not finite and positive.
-    pub fn new(system: S, h: f64) -> Result<Self> {
-        Self::with_tolerances(system, h, 1e-12, 1e-12)
-    }
-
-    /// DOP853 with macro step h and the given tolerances (the error of each internal step is
-    /// measured against `atol + rtol·|y_i|`, as in Hairer's code).
-    ///
-    /// # Errors
-    /// [`Error::InvalidStepSize`]; [`Error::InvalidParameter`] unless rtol and atol are finite
-    /// and positive.
-    pub fn with_tolerances(system: S, h: f64, rtol: f64, atol: f64) -> Result<Self> {
-        if !(h.is_finite() && h > 0.0) {
-            return Err(Error::InvalidStepSize(h));
-        }
+    /// [`Error::InvalidParameter`] unless rtol and atol are finite and positive.
+    pub fn new(system: S, rtol: f64, atol: f64) -> Result<Self> {
         for (name, tol) in [("rtol", rtol), ("atol", atol)] {
             if !(tol.is_finite() && tol > 0.0) {
                 return Err(Error::InvalidParameter(format!(
-                    "DOP853 {name} = {tol} must be finite and > 0"
+                    "DOP853 {name} = {tol:e} must be finite and > 0"
                 )));
             }
         }
-        let d = system.dim();
-        let scratch = RefCell::new(vec![0.0; system.scratch_len()]);
         Ok(Dop853 {
             system,
-            h,
             rtol,
             atol,
-            max_internal_steps: 100_000,
-            h_internal: 0.0,
-            stats: Dop853Stats::default(),
-            g: RefCell::new(vec![0.0; d]),
-            scratch,
-            f0: vec![0.0; d],
+            max_steps: u32::MAX,
         })
     }
 
-    /// Sets the largest number of internal steps (accepted or rejected) in one macro step
-    /// (default 100 000).
+    /// Sets the largest number of steps (accepted or rejected) of one integration (default:
+    /// no limit).
     ///
     /// # Errors
     /// [`Error::InvalidParameter`] if `n` is 0.
-    pub fn set_max_internal_steps(&mut self, n: u32) -> Result<()> {
+    pub fn set_max_steps(&mut self, n: u32) -> Result<()> {
         if n == 0 {
             return Err(Error::InvalidParameter(
-                "DOP853 needs at least one internal step".into(),
+                "DOP853 needs at least one step".into(),
             ));
         }
-        self.max_internal_steps = n;
+        self.max_steps = n;
         Ok(())
     }
 
@@ -135,41 +192,44 @@ impl<S: System> Dop853<S> {
         &self.system
     }
 
-    /// The macro step size.
-    pub fn step_size(&self) -> f64 {
-        self.h
-    }
-
     /// (rtol, atol).
     pub fn tolerances(&self) -> (f64, f64) {
         (self.rtol, self.atol)
     }
 
-    /// Cumulative statistics of all macro steps so far.
-    pub fn stats(&self) -> Dop853Stats {
-        self.stats
-    }
-
-    /// Changes the macro step size.
+    /// Integrates y from t0 to t_end in place: one call of the crate.
     ///
     /// # Errors
-    /// [`Error::InvalidStepSize`].
-    pub fn set_step_size(&mut self, h: f64) -> Result<()> {
-        if !(h.is_finite() && h > 0.0) {
-            return Err(Error::InvalidStepSize(h));
-        }
-        self.h = h;
-        Ok(())
+    /// [`Error::InvalidInput`] unless t0 < t_end are finite, [`Error::DimensionMismatch`] for
+    /// a wrong length, [`Error::NonFinite`] if y or f is NaN/infinite, [`Error::Numerical`]
+    /// if the code gives up (too many steps, step size underflow, stiffness detected). On
+    /// error, y is unchanged.
+    pub fn integrate(&self, t0: f64, t_end: f64, y: &mut [f64]) -> Result<Dop853Stats> {
+        self.run(t0, t_end, 0.0, y, None)
     }
 
-    /// Integrates y over one macro step of size h in place; `g_evals` of the report counts
-    /// the evaluations of f (including the initial-step heuristic's).
+    /// As [`integrate`](Self::integrate), calling `observer(t, y)` after every accepted step.
     ///
     /// # Errors
-    /// [`Error::DimensionMismatch`] for a wrong length, [`Error::NonFinite`] if y or f is
-    /// NaN/infinite, [`Error::Numerical`] if the code gives up (too many internal steps, step
-    /// size underflow, stiffness detected). On error, y is unchanged.
-    pub fn step(&mut self, y: &mut [f64]) -> Result<StepReport> {
+    /// As [`integrate`](Self::integrate).
+    pub fn integrate_observed(
+        &self,
+        t0: f64,
+        t_end: f64,
+        y: &mut [f64],
+        observer: Observer<'_>,
+    ) -> Result<Dop853Stats> {
+        self.run(t0, t_end, 0.0, y, Some(observer))
+    }
+
+    fn run(
+        &self,
+        t0: f64,
+        t_end: f64,
+        h_start: f64,
+        y: &mut [f64],
+        observer: Option<Observer<'_>>,
+    ) -> Result<Dop853Stats> {
         let d = self.system.dim();
         if y.len() != d {
             return Err(Error::DimensionMismatch {
@@ -178,82 +238,156 @@ impl<S: System> Dop853<S> {
                 found: y.len(),
             });
         }
+        if !(t0.is_finite() && t_end.is_finite() && t_end > t0) {
+            return Err(Error::InvalidInput(format!(
+                "DOP853 needs finite t0 < t_end, got [{t0:e}, {t_end:e}]"
+            )));
+        }
         if y.iter().any(|v| !v.is_finite()) {
             return Err(Error::NonFinite("state y"));
         }
         let non_finite = Cell::new(false);
         let rhs = Rhs {
             system: &self.system,
-            g: &self.g,
-            scratch: &self.scratch,
+            buffers: RefCell::new((vec![0.0; d], vec![0.0; self.system.scratch_len()])),
             non_finite: &non_finite,
+            observer,
         };
         // A non-finite f(y0) would make the code shrink its step until it gives up.
-        rhs.eval(y, &mut self.f0);
+        let mut f0 = vec![0.0; d];
+        rhs.eval(y, &mut f0);
         if non_finite.get() {
             return Err(Error::NonFinite("f(y) = Ay + g(y)"));
         }
-        let h = self.h;
-        let h_start = self.h_internal.min(h);
-        let mut solver = ode_solvers::Dop853::from_param(
-            rhs,
-            0.0,
-            h,
-            h,
-            DVector::from_column_slice(y),
-            self.rtol,
-            self.atol,
-            0.9,   // safety factor (Hairer's default)
-            0.0,   // beta: no PI control (default)
-            0.333, // fac_min (default)
-            6.0,   // fac_max (default)
-            h,     // h_max
+        let call = Call {
+            t0,
+            t_end,
             h_start,
-            self.max_internal_steps,
-            1000, // stiffness test every 1000 accepted steps (default)
-            OutputType::Sparse,
-        );
-        let result = solver.integrate();
+            h_max: t_end - t0,
+        };
+        let (result, y1) = self.dispatch(rhs, &call, y);
         if non_finite.get() {
-            return Err(Error::NonFinite("f(y) = Ay + g(y) at an internal stage"));
+            return Err(Error::NonFinite("f(y) = Ay + g(y) at a stage"));
         }
         let stats = result.map_err(|e| Error::Numerical(format!("DOP853: {e}")))?;
-        let y1 = solver
-            .y_out()
-            .last()
-            .ok_or_else(|| Error::Numerical("DOP853 returned no state".into()))?;
+        let y1 = y1.ok_or_else(|| Error::Numerical("DOP853 returned no state".into()))?;
         if y1.iter().any(|v| !v.is_finite()) {
-            return Err(Error::NonFinite("DOP853 step result"));
+            return Err(Error::NonFinite("DOP853 result"));
         }
-        y.copy_from_slice(y1.as_slice());
-        let accepted = stats.accepted_steps as usize;
-        let f_evals = stats.num_eval as usize + 1;
-        self.stats.f_evals += f_evals;
-        self.stats.accepted += accepted;
-        self.stats.rejected += stats.rejected_steps as usize;
-        if accepted > 0 {
-            self.h_internal = h / accepted as f64;
+        y.copy_from_slice(&y1);
+        Ok(Dop853Stats {
+            // + 1: the check of f(y0) above.
+            f_evals: stats.num_eval as usize + 1,
+            accepted: stats.accepted_steps as usize,
+            rejected: stats.rejected_steps as usize,
+        })
+    }
+
+    /// Calls the crate with the fixed-size state type for `d` where there is one.
+    fn dispatch(
+        &self,
+        rhs: Rhs<'_, '_, S>,
+        call: &Call,
+        y: &[f64],
+    ) -> (CrateResult, Option<Vec<f64>>) {
+        macro_rules! fixed {
+            ($($n:literal),*) => {
+                match y.len() {
+                    $($n => return call_crate!(self, rhs, call, y, SVector<f64, $n>),)*
+                    _ => call_crate!(self, rhs, call, y, DVector<f64>),
+                }
+            };
+        }
+        fixed!(1, 2, 3, 4, 6, 8, 12, 16, 32, 256)
+    }
+}
+
+type CrateResult =
+    std::result::Result<ode_solvers::dop_shared::Stats, ode_solvers::dop_shared::IntegrationError>;
+
+/// [`Dop853`] as a fixed-output-step [`Integrator`]: each step of size h is one call of the
+/// crate over [0, h], starting with the internal step size the previous call ended with
+/// (the first uses the code's heuristic). For output at every multiple of h; it pays a
+/// restart per output step, so timings use [`Dop853::integrate`].
+pub struct Dop853Stepper<S: System> {
+    dop: Dop853<S>,
+    h: f64,
+    /// Internal step size to start the next call with (0: the code's heuristic).
+    h_internal: f64,
+    stats: Dop853Stats,
+}
+
+impl<S: System> Dop853Stepper<S> {
+    /// Output step h, rtol = atol = 1e−12.
+    ///
+    /// # Errors
+    /// [`Error::InvalidStepSize`] if h is not finite and positive.
+    pub fn new(system: S, h: f64) -> Result<Self> {
+        Self::with_tolerances(system, h, 1e-12, 1e-12)
+    }
+
+    /// Output step h and the given tolerances.
+    ///
+    /// # Errors
+    /// [`Error::InvalidStepSize`]; as [`Dop853::new`].
+    pub fn with_tolerances(system: S, h: f64, rtol: f64, atol: f64) -> Result<Self> {
+        if !(h.is_finite() && h > 0.0) {
+            return Err(Error::InvalidStepSize(h));
+        }
+        Ok(Dop853Stepper {
+            dop: Dop853::new(system, rtol, atol)?,
+            h,
+            h_internal: 0.0,
+            stats: Dop853Stats::default(),
+        })
+    }
+
+    /// The underlying integrator.
+    pub fn dop853(&self) -> &Dop853<S> {
+        &self.dop
+    }
+
+    /// Cumulative statistics of all steps so far.
+    pub fn stats(&self) -> Dop853Stats {
+        self.stats
+    }
+
+    /// One output step of size h in place.
+    ///
+    /// # Errors
+    /// As [`Dop853::integrate`]; on error, y is unchanged.
+    pub fn step(&mut self, y: &mut [f64]) -> Result<StepReport> {
+        let stats = self
+            .dop
+            .run(0.0, self.h, self.h_internal.min(self.h), y, None)?;
+        self.stats.add(stats);
+        if stats.accepted > 0 {
+            self.h_internal = self.h / stats.accepted as f64;
         }
         Ok(StepReport {
             sweeps: 0,
             residual: 0.0,
-            g_evals: f_evals,
+            g_evals: stats.f_evals,
             converged: true,
         })
     }
 }
 
-impl<S: System> Integrator for Dop853<S> {
+impl<S: System> Integrator for Dop853Stepper<S> {
     fn step_size(&self) -> f64 {
         self.h
     }
     fn set_step_size(&mut self, h: f64) -> Result<()> {
-        Dop853::set_step_size(self, h)
+        if !(h.is_finite() && h > 0.0) {
+            return Err(Error::InvalidStepSize(h));
+        }
+        self.h = h;
+        Ok(())
     }
     fn step_state(&mut self, y: &mut [f64]) -> Result<StepReport> {
         self.step(y)
     }
     fn energy_of(&self, y: &[f64]) -> Option<f64> {
-        self.system.energy(y)
+        self.dop.system.energy(y)
     }
 }

@@ -19,7 +19,7 @@
 //! out of that problem's panels; the other methods still run.
 
 use ecr_runtime::baselines::collocation::rkepc2;
-use ecr_runtime::baselines::dop853::Dop853;
+use ecr_runtime::baselines::dop853::Dop853Stepper;
 use ecr_runtime::baselines::exponential::Exprb43;
 use ecr_runtime::baselines::krylov::Exprb43Krylov;
 use ecr_runtime::integrate::Integrator;
@@ -162,7 +162,7 @@ pub fn methods() -> Vec<Method> {
             name: "DOP853",
             about: "Dormand–Prince 8(5,3) (ode_solvers), adaptive inside each step h, \
                     rtol = atol = 1e-12: what many users pick instead",
-            build: |p, h| on_system!(p, sys => boxed(Dop853::new(sys, h))),
+            build: |p, h| on_system!(p, sys => boxed(Dop853Stepper::new(sys, h))),
         },
     ]
 }
