@@ -9,7 +9,7 @@ use common::{TempDir, ecr};
 use std::path::Path;
 
 const PROBLEMS: [&str; 3] = ["duffing", "wind", "nls"];
-const HEADER: [&str; 8] = [
+const HEADER: [&str; 9] = [
     "method",
     "r",
     "s",
@@ -18,6 +18,7 @@ const HEADER: [&str; 8] = [
     "cpu_seconds",
     "global_error",
     "max_energy_error",
+    "setup_seconds",
 ];
 
 fn non_empty(path: &Path) -> Vec<u8> {

@@ -14,6 +14,9 @@ pub mod system;
 pub mod tables;
 
 pub use error::{Error, Result};
+/// The linear-algebra crate of the public signatures (`DMatrix`, `SMatrix`), re-exported so
+/// that users need not pin a matching version.
+pub use nalgebra;
 
 // Lets code emitted by `ecr_method!` name this crate `::ecr_runtime` from inside it too.
 extern crate self as ecr_runtime;

@@ -6,6 +6,7 @@
 //! Reuses the `ecr reproduce` harness: its problem type, method registry, `Dyn` wrapper,
 //! output-directory and CSV helpers and plotting code.
 
+mod macros;
 mod scaling;
 mod summary;
 mod sweep;
@@ -65,6 +66,7 @@ fn csv(run: &ProblemRun) -> Csv {
             "cpu_seconds",
             "global_error",
             "max_energy_error",
+            "setup_seconds",
         ],
         rows: run
             .points
@@ -79,6 +81,7 @@ fn csv(run: &ProblemRun) -> Csv {
                     num(p.cpu),
                     num(p.error),
                     num(p.energy),
+                    num(p.setup),
                 ]
             })
             .collect(),
@@ -92,7 +95,7 @@ fn log10(x: f64) -> Option<f64> {
 /// One figure per quantity: one panel per group of series, DOP853 drawn in every panel.
 fn figure(run: &ProblemRun, energy: bool) -> Figure {
     let mut groups: Vec<&str> = Vec::new();
-    for (_, g) in &run.series {
+    for (_, g, _) in &run.series {
         if !groups.contains(g) {
             groups.push(g);
         }
@@ -104,8 +107,8 @@ fn figure(run: &ProblemRun, energy: bool) -> Figure {
             let curves = run
                 .series
                 .iter()
-                .filter(|(l, sg)| *sg == g || l == "DOP853")
-                .map(|(label, _)| Curve {
+                .filter(|(l, sg, _)| *sg == g || l == "DOP853")
+                .map(|(label, _, _)| Curve {
                     label: label.clone(),
                     points: run
                         .points

@@ -1,70 +1,123 @@
-//! `summary.md`: cheapest method per target accuracy (log CPU interpolated linearly in log
-//! error between measured points), CPU ratios, and the headline comparisons.
+//! `summary.md`: per problem and target accuracy, the cheapest method, the best of this
+//! project's methods (run-time and `ecr_method!` steppers) against the best peer, and every
+//! method's cost (log CPU interpolated linearly in log error between measured points; set-up
+//! counted), with each method's round-off floor.
 
 use super::scaling::{self, Scaling};
-use super::sweep::{Config, ERROR_CEILING, ERROR_FLOOR, Point, ProblemRun, Results};
+use super::sweep::{
+    Config, ERROR_CEILING, ERROR_FLOOR, Family, Point, ProblemRun, Results, solver,
+};
 use std::fmt::Write;
 
 /// Target accuracies (global error).
-pub const TARGETS: [f64; 3] = [1e-6, 1e-8, 1e-10];
+pub const TARGETS: [f64; 4] = [1e-6, 1e-8, 1e-10, 1e-12];
 
-/// CPU seconds to reach a target and whether it is only an upper bound (None: not reached).
-pub type Cost = Option<(f64, bool)>;
+/// A target closer than this factor to the reference's estimated error is not assessed.
+pub const REFERENCE_MARGIN: f64 = 10.0;
 
-/// CPU seconds a series needs to reach global error ≤ `target`, and whether that is only an
-/// upper bound (its cheapest measured point is already below the target). None: not reached.
+/// What a series needs to reach a target.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Cost {
+    /// CPU seconds (set-up included), and whether that is only an upper bound (the cheapest
+    /// measured point is already more accurate).
+    Reached { cpu: f64, bound: bool },
+    /// The target lies below the series' round-off floor: a point there would be luck.
+    BelowFloor(f64),
+    /// No measured point reaches the target.
+    NotReached,
+}
+
+impl Cost {
+    fn cpu(self) -> Option<f64> {
+        match self {
+            Cost::Reached { cpu, .. } => Some(cpu),
+            _ => None,
+        }
+    }
+}
+
+/// The round-off floor of a series (its points in sweep order, h or tol decreasing): once a
+/// refinement no longer halves an error below 1e−7, the error has stopped following the
+/// method's order; the floor is the largest error from that point on.
+pub fn floor(points: &[&Point]) -> Option<f64> {
+    let i = (1..points.len())
+        .find(|&i| points[i].error >= 0.5 * points[i - 1].error && points[i].error < 1e-7)?;
+    Some(points[i - 1..].iter().map(|p| p.error).fold(0.0, f64::max))
+}
+
+/// CPU seconds a series needs to reach global error ≤ `target`.
 pub fn cost_to_reach(points: &[&Point], target: f64) -> Cost {
+    if let Some(f) = floor(points)
+        && target < f
+    {
+        return Cost::BelowFloor(f);
+    }
     let mut pts: Vec<(f64, f64)> = points
         .iter()
         .filter(|p| p.cpu > 0.0 && p.error.is_finite())
         .map(|p| (p.cpu, p.error))
         .collect();
     pts.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let i = pts.iter().position(|p| p.1 <= target)?;
+    let Some(i) = pts.iter().position(|p| p.1 <= target) else {
+        return Cost::NotReached;
+    };
     if i == 0 {
-        return Some((pts[0].0, true));
+        return Cost::Reached {
+            cpu: pts[0].0,
+            bound: true,
+        };
     }
     let (c0, e0) = pts[i - 1];
     let (c1, e1) = pts[i];
     if e1 <= 0.0 {
-        return Some((c1, false));
+        return Cost::Reached {
+            cpu: c1,
+            bound: false,
+        };
     }
     let (l0, l1, lt) = (e0.log10(), e1.log10(), target.log10());
     let t = ((l0 - lt) / (l0 - l1)).clamp(0.0, 1.0);
-    Some((
-        10f64.powf(c0.log10() + t * (c1.log10() - c0.log10())),
-        false,
-    ))
+    Cost::Reached {
+        cpu: 10f64.powf(c0.log10() + t * (c1.log10() - c0.log10())),
+        bound: false,
+    }
 }
 
 fn series_points<'a>(run: &'a ProblemRun, label: &str) -> Vec<&'a Point> {
     run.points.iter().filter(|p| p.series == label).collect()
 }
 
+/// One series' cost at a target.
+pub struct Entry<'a> {
+    pub label: &'a str,
+    pub family: Family,
+    pub cost: Cost,
+}
+
 /// Cost of every series of `run` at `target`.
-pub fn costs(run: &ProblemRun, target: f64) -> Vec<(String, &'static str, Cost)> {
+pub fn costs(run: &ProblemRun, target: f64) -> Vec<Entry<'_>> {
     run.series
         .iter()
-        .map(|(label, group)| {
-            (
-                label.clone(),
-                *group,
-                cost_to_reach(&series_points(run, label), target),
-            )
+        .map(|(label, _, family)| Entry {
+            label,
+            family: *family,
+            cost: cost_to_reach(&series_points(run, label), target),
         })
         .collect()
 }
 
-/// The cheapest series reaching `target` among those accepted by `keep`.
-fn cheapest(
-    run: &ProblemRun,
-    target: f64,
-    keep: impl Fn(&str, &str) -> bool,
-) -> Option<(String, f64, bool)> {
-    costs(run, target)
-        .into_iter()
-        .filter(|(l, g, _)| keep(l, g))
-        .filter_map(|(l, _, c)| c.map(|(s, b)| (l, s, b)))
+/// The cheapest entry accepted by `keep`: (label, cpu, bound).
+fn cheapest<'a>(
+    entries: &[Entry<'a>],
+    keep: impl Fn(&Entry) -> bool,
+) -> Option<(&'a str, f64, bool)> {
+    entries
+        .iter()
+        .filter(|e| keep(e))
+        .filter_map(|e| match e.cost {
+            Cost::Reached { cpu, bound } => Some((e.label, cpu, bound)),
+            _ => None,
+        })
         .min_by(|a, b| a.1.total_cmp(&b.1))
 }
 
@@ -72,100 +125,11 @@ fn secs(x: f64, bound: bool) -> String {
     format!("{}{x:.2e} s", if bound { "≤ " } else { "" })
 }
 
-/// "ratio (target t): met / missed by factor f".
-fn verdict(ratio: f64, target: f64) -> String {
-    if ratio <= target {
-        format!("**met** (target ≤ {})", fraction(target))
-    } else {
-        format!(
-            "**missed** by a factor {:.2} (target ≤ {})",
-            ratio / target,
-            fraction(target)
-        )
-    }
-}
-
-fn fraction(x: f64) -> String {
-    if x < 1.0 {
-        format!("1/{}", (1.0 / x).round())
-    } else {
-        format!("{x}")
-    }
-}
-
-/// When `label` never reached `target`: the longest of its finished runs (recorded points:
-/// median CPU; too inaccurate runs: that run's seconds), each less accurate than the target,
-/// and the best error any of them achieved. Its cost to reach the target exceeds that time,
-/// since a fixed-step method's cost grows as h shrinks (DOP853's as tol shrinks).
-fn unreached(run: &ProblemRun, label: &str) -> Option<(f64, f64)> {
-    let recorded = series_points(run, label)
-        .into_iter()
-        .map(|p| (p.cpu, p.error));
-    let skipped = run
-        .attempts
-        .iter()
-        .filter(|a| a.series == label)
-        .map(|a| (a.seconds, a.error));
-    recorded.chain(skipped).filter(|(_, e)| e.is_finite()).fold(
-        None,
-        |acc: Option<(f64, f64)>, (t, e)| {
-            Some(acc.map_or((t, e), |(t0, e0)| (t0.max(t), e0.min(e))))
-        },
+fn named(c: Option<(&str, f64, bool)>) -> String {
+    c.map_or_else(
+        || "none reaches it".to_string(),
+        |(l, x, b)| format!("{l} {}", secs(x, b)),
     )
-}
-
-#[allow(clippy::too_many_arguments)]
-fn ratio_line(
-    out: &mut String,
-    what: &str,
-    ec: &Option<(String, f64, bool)>,
-    run: &ProblemRun,
-    label: &'static str,
-    accuracy: f64,
-    target: f64,
-) {
-    let other = by_label(run, label, accuracy);
-    let _ = match (ec, &other) {
-        (Some((el, ec, eb)), Some((ol, oc, ob))) => writeln!(
-            out,
-            "- {what}: {el} {} vs {ol} {} → ratio {:.3} — {}{}",
-            secs(*ec, *eb),
-            secs(*oc, *ob),
-            ec / oc,
-            verdict(ec / oc, target),
-            if *eb || *ob {
-                " (≤: the cheapest measured point was already below the target, so that CPU \
-                 time is an upper bound)"
-            } else {
-                ""
-            }
-        ),
-        (None, _) => writeln!(out, "- {what}: no ECrP run reached the target — **missed**"),
-        (Some((el, ec, eb)), None) => match unreached(run, label) {
-            Some((t, best)) => writeln!(
-                out,
-                "- {what}: {el} {}; {label} never reached {accuracy:e} (best error {best:.1e}; its \
-                 longest run, {t:.3} s, was still less accurate), so its cost exceeds {t:.3} s \
-                 and the ratio is below {:.4} — {}",
-                secs(*ec, *eb),
-                ec / t,
-                verdict(ec / t, target)
-            ),
-            None => writeln!(
-                out,
-                "- {what}: {el} {}; {label} finished no run (see the skipped points) — no ratio",
-                secs(*ec, *eb)
-            ),
-        },
-    };
-}
-
-fn is_ec(label: &str) -> bool {
-    label.starts_with("EC") && !label.contains("dense")
-}
-
-fn by_label(run: &ProblemRun, label: &'static str, target: f64) -> Option<(String, f64, bool)> {
-    cheapest(run, target, |l, _| l == label)
 }
 
 /// The Markdown summary of what was run.
@@ -246,72 +210,103 @@ fn scaling_section(w: &mut String, s: &Scaling) {
 }
 
 fn work_precision(w: &mut String, c: &Config, r: &Results) {
+    let settings = solver();
     let _ = writeln!(w, "## Work–precision\n");
     let _ = writeln!(
         w,
-        "CPU time is the **wall-clock time of a single-threaded run** (std::time::Instant around \
-         the integration only: building the integrator — coefficient tables, φ-functions — is \
-         excluded), the median of {} run(s) per point. Global error: max-norm of y(T) − \
-         y_ref(T). Energy error: max over every step of |H(y_n) − H(y_0)| / |H(y_0)|, measured in \
-         a separate untimed run. Implicit methods (ECrP, TCrP, RKEPC2, Gauss, AVF, ExpAVF) \
-         iterate their stage equations to convergence (estimated error ≤ 1e-15 or round-off \
+        "CPU time is the **wall-clock time of a single-threaded run, set-up included**: \
+         building the method (coefficient tables, φ-/kernel banks, FFT plans) and integrating \
+         over [0, T], the median of {} run(s) per point; the set-up alone is reported too \
+         (`setup_seconds` in the CSV). Global error: max-norm of y(T) − y_ref(T). Energy \
+         error: max over every step of |H(y_n) − H(y_0)| / |H(y_0)|, measured in a separate \
+         untimed run. Implicit methods (ECrP, TCrP, RKEPC2, Gauss, AVF, ExpAVF) iterate \
+         their stage equations to convergence (estimated error ≤ {:e} or round-off \
          stagnation), starting from the previous step's continuous solution extrapolated to \
-         the new nodes (`Predictor::Extrapolate`). Each series halves h from its largest step \
-         size until the error is ≤ {ERROR_FLOOR:e}, stagnates at round-off, a run exceeds \
-         {} s or {} points were recorded; points with error > {ERROR_CEILING:e} or failures \
-         are skipped (listed per problem). DOP853 sweeps rtol = atol over 1e-4 … 1e-15 with a \
-         fixed macro step. Cost to reach a target: log CPU interpolated linearly in log error \
-         between the two measured points around the target (≤: the cheapest measured point is \
-         already more accurate, an upper bound).\n",
-        c.repeats, c.budget, c.attempts
+         the new nodes. \"EC{{r}}P\" is the run-time-r stepper (`EcStepper`, what `ecr run` \
+         uses); \"EC{{r}}P macro\" the fixed-order stepper of `ecr_method!(r = …)` (d = 2: \
+         `Ec{{r}}<_, 2>` with a `DenseStatic` operator and g a closure; NLS: `Ec{{r}}Dyn`). Each \
+         series halves h from its largest step size until the error is ≤ {ERROR_FLOOR:e}, \
+         stagnates at round-off, a run exceeds {} s or {} points were recorded; points with \
+         error > {ERROR_CEILING:e} or failures are skipped (listed per problem). DOP853 is \
+         one call of `ode_solvers` over [0, T] (fixed-size state, sparse output) per \
+         rtol = atol from 1e-4 to 1e-15. Cost to reach a target: log CPU interpolated \
+         linearly in log error between the two measured points around it (≤: the cheapest \
+         measured point is already more accurate, an upper bound). **Round-off floor**: once \
+         a refinement no longer halves an error below 1e-7, the largest error from there on; \
+         a target below a method's floor counts as not reached by it, whatever a lucky point \
+         shows. Targets within a factor {REFERENCE_MARGIN} of the reference's estimated error \
+         are not assessed.\n",
+        c.repeats, settings.tolerance, c.budget, c.attempts
     );
-    // Headlines.
-    let _ = writeln!(w, "### Headline comparisons (measured side by side)\n");
-    let find = |id: &str| r.problems.iter().find(|p| p.id == id);
-    if let Some(d) = find("duffing") {
-        let ec = cheapest(d, 1e-10, |l, _| is_ec(l));
-        let _ = writeln!(w, "(a) {} at global error 1e-10:\n", d.title);
-        ratio_line(w, "best ECrP vs DOP853", &ec, d, "DOP853", 1e-10, 1.0 / 3.0);
-        ratio_line(w, "best ECrP vs RKEPC2", &ec, d, "RKEPC2", 1e-10, 1.0 / 5.0);
-        let _ = writeln!(w);
-    }
-    if let Some(n) = find("nls") {
-        let ec = cheapest(n, 1e-8, |_, g| g == "ECrP circulant");
-        let _ = writeln!(w, "(b) {} at global error 1e-8:\n", n.title);
-        ratio_line(
-            w,
-            "best ECrP (circulant) vs DOP853",
-            &ec,
-            n,
-            "DOP853",
-            1e-8,
-            1.0 / 3.0,
-        );
-        let dense = cheapest(n, 1e-8, |_, g| g == "ECrP dense");
-        if let (Some((cl, cc, _)), Some((dl, dc, _))) = (&ec, &dense) {
-            let _ = writeln!(
-                w,
-                "- for comparison, {cl} (circulant) {cc:.2e} s vs {dl} {dc:.2e} s: dense / \
-                 circulant = {:.1}",
-                dc / cc
-            );
-        }
-        let _ = writeln!(w);
-    }
-    let l = &r.long;
-    let ratio = l.dop_energy / l.ec_energy;
     let _ = writeln!(
         w,
-        "(c) Same CPU budget, Duffing ω = 20 over T = {}: {} (h = {}) takes {:.3} s with max \
-         energy error {:.2e}; DOP853 (macro step {}, rtol = atol = {:.2e}, chosen by bisection \
+        "### Headline: this project's best against the best peer\n"
+    );
+    let _ = writeln!(
+        w,
+        "Per problem and target: the cheapest ECrP/TCrP (either stepper) against the cheapest \
+         peer (every other method), ratio = CPU(ours) / CPU(peer) (< 1: ours is faster).\n"
+    );
+    let _ = writeln!(
+        w,
+        "| problem | target | best ours | best peer | ours / peer | best run-time | best macro |\n|---|---|---|---|---|---|---|"
+    );
+    for p in &r.problems {
+        for t in TARGETS {
+            if !assessed(p, t) {
+                continue;
+            }
+            let all = costs(p, t);
+            let ours = cheapest(&all, |e| e.family.is_ours());
+            let peer = cheapest(&all, |e| e.family == Family::Peer);
+            let rt = cheapest(&all, |e| e.family == Family::Runtime);
+            let mac = cheapest(&all, |e| e.family == Family::Macro);
+            let ratio = match (ours, peer) {
+                (Some((_, a, _)), Some((_, b, _))) => format!("**{:.2}**", a / b),
+                (Some(_), None) => "no peer reaches it".to_string(),
+                (None, Some(_)) => "ours do not reach it".to_string(),
+                (None, None) => "-".to_string(),
+            };
+            let _ = writeln!(
+                w,
+                "| {} | {t:e} | {} | {} | {ratio} | {} | {} |",
+                p.id,
+                named(ours),
+                named(peer),
+                named(rt),
+                named(mac)
+            );
+        }
+    }
+    let _ = writeln!(w);
+    let d = &r.dop;
+    let _ = writeln!(
+        w,
+        "DOP853's cost per evaluation of f (Duffing ω = 20, T = {}, rtol = atol = {:e}; \
+         fastest of several interleaved runs): called directly (a user's own \
+         `ode_solvers::System` with an `SVector<f64, 2>` state) {:.1} ns ({} evaluations), \
+         through this benchmark's wrapper on the problem's `System` {:.1} ns ({} evaluations): \
+         ratio {:.2}.\n",
+        d.t_end,
+        d.tol,
+        d.direct_ns_per_eval,
+        d.direct_evals,
+        d.wrapper_ns_per_eval,
+        d.wrapper_evals,
+        d.wrapper_ns_per_eval / d.direct_ns_per_eval
+    );
+    let l = &r.long;
+    let _ = writeln!(
+        w,
+        "Same CPU budget, Duffing ω = 20 over T = {}: {} (h = {}) takes {:.3} s with max \
+         energy error {:.2e}; DOP853 (one call, rtol = atol = {:.2e}, chosen by bisection \
          over log tol so that its CPU time matches: {}) takes {:.3} s with max energy error \
-         {:.2e}. DOP853 / ECrP energy error = {:.2e} — {} (target ≥ 1e4).\n",
+         {:.2e}: DOP853 / ECrP energy error = {:.2e}.\n",
         l.t_end,
         l.ec_label,
         l.ec_h,
         l.ec_cpu,
         l.ec_energy,
-        l.dop_macro_h,
         l.dop_tol,
         l.search
             .iter()
@@ -320,15 +315,23 @@ fn work_precision(w: &mut String, c: &Config, r: &Results) {
             .join(", "),
         l.dop_cpu,
         l.dop_energy,
-        ratio,
-        if ratio >= 1e4 {
-            "**met**".to_string()
-        } else {
-            format!("**missed** by a factor {:.1}", 1e4 / ratio)
-        }
+        l.dop_energy / l.ec_energy,
     );
     for p in &r.problems {
         problem_section(w, p);
+    }
+}
+
+/// Whether a target is assessed on this problem (far enough above the reference's error).
+fn assessed(p: &ProblemRun, target: f64) -> bool {
+    target >= REFERENCE_MARGIN * p.reference_error
+}
+
+fn family_name(f: Family) -> &'static str {
+    match f {
+        Family::Runtime => "ours, run-time",
+        Family::Macro => "ours, macro",
+        Family::Peer => "peer",
     }
 }
 
@@ -340,37 +343,65 @@ fn problem_section(w: &mut String, p: &ProblemRun) {
          figures `{}-error` and `{}-energy` (.png, .svg).\n",
         p.t_end, p.reference, p.reference_error, p.id, p.id, p.id
     );
-    let all: Vec<_> = TARGETS.iter().map(|&t| costs(p, t)).collect();
-    for (ti, &t) in TARGETS.iter().enumerate() {
-        let best = all[ti]
-            .iter()
-            .filter_map(|(l, _, c)| c.map(|(s, b)| (l, s, b)))
-            .min_by(|a, b| a.1.total_cmp(&b.1));
-        let _ = match best {
-            Some((l, s, b)) => writeln!(w, "- target {t:e}: cheapest **{l}**, {}", secs(s, b)),
-            None => writeln!(w, "- target {t:e}: not reached by any method"),
-        };
+    let targets: Vec<f64> = TARGETS
+        .iter()
+        .copied()
+        .filter(|&t| assessed(p, t))
+        .collect();
+    let all: Vec<_> = targets.iter().map(|&t| costs(p, t)).collect();
+    for (ti, &t) in targets.iter().enumerate() {
+        let _ = writeln!(
+            w,
+            "- target {t:e}: cheapest {}; best ours {}; best peer {}",
+            named(cheapest(&all[ti], |_| true)),
+            named(cheapest(&all[ti], |e| e.family.is_ours())),
+            named(cheapest(&all[ti], |e| e.family == Family::Peer)),
+        );
+    }
+    for t in TARGETS.iter().filter(|&&t| !assessed(p, t)) {
+        let _ = writeln!(
+            w,
+            "- target {t:e}: not assessed (within {REFERENCE_MARGIN}× the reference's error)"
+        );
     }
     let _ = writeln!(
         w,
-        "\nCPU time to reach each target, and in parentheses its ratio to the cheapest \
-         method's (CPU(method) / CPU(cheapest)):\n"
+        "\nCPU time (set-up included) to reach each target and, in parentheses, its ratio to \
+         the cheapest method's; \"floor\": below the method's round-off floor. Set-up: the \
+         range of the median set-up time over the method's points.\n"
     );
-    let _ = write!(w, "| method |");
-    for t in TARGETS {
+    let _ = write!(w, "| method | kind | round-off floor | set-up s |");
+    for t in &targets {
         let _ = write!(w, " {t:e} |");
     }
-    let _ = writeln!(w, "\n|---|---|---|---|");
-    for (i, (label, _)) in p.series.iter().enumerate() {
-        let _ = write!(w, "| {label} |");
+    let _ = write!(w, "\n|---|---|---|---|");
+    for _ in &targets {
+        let _ = write!(w, "---|");
+    }
+    let _ = writeln!(w);
+    for (i, (label, _, family)) in p.series.iter().enumerate() {
+        let pts = series_points(p, label);
+        let fl = floor(&pts).map_or_else(|| "-".to_string(), |f| format!("{f:.1e}"));
+        let (lo, hi) = pts.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), q| {
+            (lo.min(q.setup), hi.max(q.setup))
+        });
+        let setup = if pts.is_empty() {
+            "-".to_string()
+        } else {
+            format!("{lo:.1e}–{hi:.1e}")
+        };
+        let _ = write!(w, "| {label} | {} | {fl} | {setup} |", family_name(*family));
         for per_target in &all {
             let best = per_target
                 .iter()
-                .filter_map(|(_, _, c)| c.map(|x| x.0))
+                .filter_map(|e| e.cost.cpu())
                 .fold(f64::INFINITY, f64::min);
-            let _ = match per_target[i].2 {
-                Some((s, b)) => write!(w, " {} (×{:.2}) |", secs(s, b), s / best),
-                None => write!(w, " not reached |"),
+            let _ = match per_target[i].cost {
+                Cost::Reached { cpu, bound } => {
+                    write!(w, " {} (×{:.2}) |", secs(cpu, bound), cpu / best)
+                }
+                Cost::BelowFloor(_) => write!(w, " floor |"),
+                Cost::NotReached => write!(w, " not reached |"),
             };
         }
         let _ = writeln!(w);

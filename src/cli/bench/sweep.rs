@@ -1,7 +1,8 @@
 //! The work–precision runs: for each problem and each method (series), a sweep of step sizes
-//! (DOP853: tolerances), each point timed (median of repeated runs) and measured (global error
-//! against a reference, max relative energy error).
+//! (DOP853: tolerances), each point timed (median of repeated runs, set-up included and also
+//! reported alone) and measured (global error against a reference, max relative energy error).
 
+use super::macros;
 use crate::cli::reproduce::methods::{
     self as registry, BoxedIntegrator, Dyn, Problem, boxed, ec, on_system,
 };
@@ -12,6 +13,7 @@ use ecr_runtime::integrate::{IntegrateOptions, integrate};
 use ecr_runtime::problems::{Duffing, Nls, Wind};
 use ecr_runtime::second_order::{Omega, SecondOrder, TcStepper};
 use ecr_runtime::stepper::{EcStepper, Predictor, SolverSettings};
+use ecr_runtime::system::System;
 use std::time::Instant;
 
 /// The stage solver of every implicit method in the benchmark (ECrP, TCrP, HBVM family):
@@ -23,8 +25,9 @@ pub fn solver() -> SolverSettings {
     }
 }
 
-/// Stop refining a series once its global error is below this.
-pub const ERROR_FLOOR: f64 = 1e-12;
+/// Stop refining a series once its global error is below this (a decade below the smallest
+/// target, so that the cost of 1e−12 is interpolated, not extrapolated).
+pub const ERROR_FLOOR: f64 = 1e-13;
 /// Points less accurate than this are not recorded (the sweep goes on to smaller h).
 pub const ERROR_CEILING: f64 = 1e-2;
 /// Most halvings of h0 tried per series (points too inaccurate to record do not count as
@@ -85,11 +88,95 @@ impl Config {
 pub enum Knob {
     /// Step sizes h0/2^i.
     Step { h0: f64 },
-    /// DOP853 tolerances with a fixed macro step.
-    Tol { macro_h: f64 },
+    /// DOP853 tolerances (rtol = atol), one call over [0, T].
+    Tol,
 }
 
-type Build = Box<dyn Fn(f64) -> ecr_runtime::Result<BoxedIntegrator>>;
+/// Which kind of method a series is: the summary compares the best of this project's
+/// methods (run-time and `ecr_method!` steppers) with the best peer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Family {
+    /// ECrP/TCrP with the run-time-r stepper (what `ecr run` uses).
+    Runtime,
+    /// ECrP with the fixed-order stepper of `ecr_method!`.
+    Macro,
+    /// Any other method.
+    Peer,
+}
+
+impl Family {
+    /// This project's methods (either stepper).
+    pub fn is_ours(self) -> bool {
+        self != Family::Peer
+    }
+}
+
+/// Called with the state after every step.
+pub type Observe<'a> = &'a mut dyn FnMut(&[f64]);
+
+/// A method ready to integrate, its set-up done.
+pub trait Run {
+    /// Integrates y over [0, t_end] in place, calling `observe(y)` after every step when
+    /// given (accepted steps for adaptive methods).
+    fn run(
+        &mut self,
+        y: &mut [f64],
+        t_end: f64,
+        observe: Option<Observe<'_>>,
+    ) -> Result<(), String>;
+}
+
+/// A fixed-step integrator, driven by [`integrate`].
+struct Stepped(Dyn);
+
+impl Run for Stepped {
+    fn run(
+        &mut self,
+        y: &mut [f64],
+        t_end: f64,
+        observe: Option<Observe<'_>>,
+    ) -> Result<(), String> {
+        let options = IntegrateOptions {
+            energy_every: 0,
+            observe_every: usize::from(observe.is_some()),
+        };
+        match observe {
+            Some(f) => integrate(&mut self.0, 0.0, t_end, y, options, |_, y, _| f(y)),
+            None => integrate(&mut self.0, 0.0, t_end, y, options, |_, _, _| {}),
+        }
+        .map(drop)
+        .map_err(err_s)
+    }
+}
+
+/// DOP853: one call of the crate over [0, T].
+impl<S: System> Run for Dop853<S> {
+    fn run(
+        &mut self,
+        y: &mut [f64],
+        t_end: f64,
+        observe: Option<Observe<'_>>,
+    ) -> Result<(), String> {
+        match observe {
+            Some(f) => self.integrate_observed(0.0, t_end, y, &mut |_, y| f(y)),
+            None => self.integrate(0.0, t_end, y),
+        }
+        .map(drop)
+        .map_err(err_s)
+    }
+}
+
+/// A built method.
+pub type BoxedRun = Box<dyn Run>;
+
+/// Wraps a fixed-step integrator as a [`Run`].
+pub fn stepped(integrator: ecr_runtime::Result<BoxedIntegrator>) -> ecr_runtime::Result<BoxedRun> {
+    Ok(Box::new(Stepped(Dyn(integrator?))))
+}
+
+/// Builds a series's method for h (or tol).
+pub type BuildFn = Box<dyn Fn(f64) -> ecr_runtime::Result<BoxedRun>>;
+type Build = BuildFn;
 /// A registered method's constructor.
 type RegistryBuild = fn(&Problem, f64) -> ecr_runtime::Result<BoxedIntegrator>;
 
@@ -98,6 +185,7 @@ pub struct Series {
     pub label: String,
     /// Panel of the figures it is drawn in.
     pub group: &'static str,
+    pub family: Family,
     pub r: Option<usize>,
     pub s: Option<usize>,
     pub knob: Knob,
@@ -113,20 +201,15 @@ pub struct Point {
     pub s: Option<usize>,
     pub h: f64,
     pub tol: Option<f64>,
-    /// Median wall-clock seconds of the integration (single-threaded).
+    /// Median wall-clock seconds of set-up (building the method: tables, φ-banks, FFT plans)
+    /// and integration together (single-threaded): what a user pays.
     pub cpu: f64,
+    /// Median wall-clock seconds of the set-up alone.
+    pub setup: f64,
     /// max-norm of y(T) − y_ref(T).
     pub error: f64,
     /// max over every step of |H − H0| / |H0|.
     pub energy: f64,
-}
-
-/// One finished but unrecorded run of a series: its global error and its seconds.
-#[derive(Clone, Debug)]
-pub struct Attempt {
-    pub series: String,
-    pub error: f64,
-    pub seconds: f64,
 }
 
 /// Everything measured for one problem.
@@ -136,14 +219,11 @@ pub struct ProblemRun {
     pub t_end: f64,
     pub reference: String,
     pub reference_error: f64,
-    /// (label, group) of every series, in order.
-    pub series: Vec<(String, &'static str)>,
+    /// (label, group, family) of every series, in order.
+    pub series: Vec<(String, &'static str, Family)>,
     pub points: Vec<Point>,
     /// Skipped points and failures, one line each.
     pub notes: Vec<String>,
-    /// Finished runs too inaccurate to record (error > ERROR_CEILING), with the seconds of that
-    /// run (including its per-step energy check).
-    pub attempts: Vec<Attempt>,
 }
 
 /// Result of the equal-CPU-budget energy comparison.
@@ -153,7 +233,6 @@ pub struct LongRun {
     pub ec_h: f64,
     pub ec_cpu: f64,
     pub ec_energy: f64,
-    pub dop_macro_h: f64,
     pub dop_tol: f64,
     pub dop_cpu: f64,
     pub dop_energy: f64,
@@ -161,10 +240,91 @@ pub struct LongRun {
     pub search: Vec<(f64, f64)>,
 }
 
+/// DOP853's cost per evaluation of f, called directly (a user's own `ode_solvers::System` for
+/// Duffing with a fixed-size state) and through [`Dop853`] on the problem's `System`.
+pub struct DopOverhead {
+    pub t_end: f64,
+    pub tol: f64,
+    pub direct_evals: usize,
+    pub direct_ns_per_eval: f64,
+    pub wrapper_evals: usize,
+    pub wrapper_ns_per_eval: f64,
+}
+
 /// Everything `ecr bench` measured.
 pub struct Results {
     pub problems: Vec<ProblemRun>,
     pub long: LongRun,
+    pub dop: DopOverhead,
+}
+
+/// Duffing's f = Ay + g(y) written out as a user of `ode_solvers` would.
+struct DirectDuffing {
+    /// ω² + k².
+    stiffness: f64,
+    /// 2k².
+    cubic: f64,
+}
+
+impl ode_solvers::System<f64, ode_solvers::SVector<f64, 2>> for DirectDuffing {
+    fn system(
+        &self,
+        _t: f64,
+        y: &ode_solvers::SVector<f64, 2>,
+        dy: &mut ode_solvers::SVector<f64, 2>,
+    ) {
+        dy[0] = y[1];
+        dy[1] = -self.stiffness * y[0] + self.cubic * y[0] * y[0] * y[0];
+    }
+}
+
+/// Times DOP853 on Duffing ω = 20 over [0, duffing_t] at rtol = atol = 1e−10, called directly
+/// (`ode_solvers::Dop853::new` + `integrate`, sparse output) and through [`Dop853`]; the
+/// fastest of `max(repeats, 3)` interleaved runs of each.
+fn dop_overhead(c: &Config) -> Result<DopOverhead, String> {
+    let d = Duffing::new(OMEGA, K).map_err(err_s)?;
+    let (t, tol) = (c.duffing_t, 1e-10);
+    let y0 = d.initial_value();
+    let wrapper = Dop853::new(d.system().map_err(err_s)?, tol, tol).map_err(err_s)?;
+    let (mut direct_best, mut wrapper_best) = (f64::INFINITY, f64::INFINITY);
+    let (mut direct_evals, mut wrapper_evals) = (0, 0);
+    for _ in 0..c.repeats.max(3) {
+        let start = Instant::now();
+        let f = DirectDuffing {
+            stiffness: OMEGA * OMEGA + K * K,
+            cubic: 2.0 * K * K,
+        };
+        let mut solver = ode_solvers::Dop853::new(
+            f,
+            0.0,
+            t,
+            t,
+            ode_solvers::SVector::<f64, 2>::from_column_slice(&y0),
+            tol,
+            tol,
+        );
+        solver.set_output(ode_solvers::OutputType::Sparse);
+        let stats = solver
+            .integrate()
+            .map_err(|e| format!("DOP853 (direct): {e}"))?;
+        direct_best = direct_best.min(start.elapsed().as_secs_f64());
+        direct_evals = stats.num_eval as usize;
+        std::hint::black_box(solver.y_out().last());
+
+        let mut y = y0.clone();
+        let start = Instant::now();
+        let stats = wrapper.integrate(0.0, t, &mut y).map_err(err_s)?;
+        wrapper_best = wrapper_best.min(start.elapsed().as_secs_f64());
+        wrapper_evals = stats.f_evals;
+    }
+    Ok(DopOverhead {
+        t_end: t,
+        tol,
+        direct_evals,
+        direct_ns_per_eval: direct_best * 1e9 / direct_evals as f64,
+        wrapper_evals,
+        wrapper_ns_per_eval: wrapper_best * 1e9 / wrapper_evals as f64,
+    })
 }
 
 /// Duffing of the benchmark.
@@ -186,46 +346,45 @@ fn max_diff(a: &[f64], b: &[f64]) -> f64 {
         .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
 }
 
-/// Integrates from y0 over [0, t_end]; returns (y(T), seconds). Only the integration is timed.
-fn timed(integrator: BoxedIntegrator, y0: &[f64], t_end: f64) -> Result<(Vec<f64>, f64), String> {
-    let mut stepper = Dyn(integrator);
+/// Builds and integrates from y0 over [0, t_end]; returns (y(T), set-up seconds, total
+/// seconds): set-up and integration are both timed.
+fn timed(build: &Build, x: f64, y0: &[f64], t_end: f64) -> Result<(Vec<f64>, f64, f64), String> {
     let mut y = y0.to_vec();
-    let options = IntegrateOptions {
-        energy_every: 0,
-        observe_every: 0,
-    };
     let start = Instant::now();
-    let result = integrate(&mut stepper, 0.0, t_end, &mut y, options, |_, _, _| {});
+    let mut method = build(x).map_err(err_s)?;
+    let setup = start.elapsed().as_secs_f64();
+    let result = method.run(&mut y, t_end, None);
     let seconds = start.elapsed().as_secs_f64();
-    result.map_err(err_s)?;
+    result?;
     if y.iter().any(|v| !v.is_finite()) {
         return Err("the solution is not finite".to_string());
     }
-    Ok((y, seconds))
+    Ok((y, setup, seconds))
 }
 
 /// Integrates with H checked after every step; returns (y(T), max |H − H0|/|H0|, seconds).
 fn with_energy(
-    integrator: BoxedIntegrator,
+    build: &Build,
+    x: f64,
     problem: &Problem,
     t_end: f64,
 ) -> Result<(Vec<f64>, f64, f64), String> {
-    let mut stepper = Dyn(integrator);
     let mut y = problem.initial_value();
     let h0 = problem.energy(&y);
     let scale = h0.abs().max(f64::MIN_POSITIVE);
     let mut max_e = 0.0f64;
-    let options = IntegrateOptions {
-        energy_every: 0,
-        observe_every: 1,
-    };
     let start = Instant::now();
-    let result = integrate(&mut stepper, 0.0, t_end, &mut y, options, |_, y, _| {
-        let e = (problem.energy(y) - h0).abs() / scale;
-        max_e = max_e.max(if e.is_finite() { e } else { f64::INFINITY });
-    });
+    let mut method = build(x).map_err(err_s)?;
+    let result = method.run(
+        &mut y,
+        t_end,
+        Some(&mut |y: &[f64]| {
+            let e = (problem.energy(y) - h0).abs() / scale;
+            max_e = max_e.max(if e.is_finite() { e } else { f64::INFINITY });
+        }),
+    );
     let seconds = start.elapsed().as_secs_f64();
-    result.map_err(err_s)?;
+    result?;
     if y.iter().any(|v| !v.is_finite()) {
         return Err("the solution is not finite".to_string());
     }
@@ -249,12 +408,11 @@ fn sweep(
     c: &Config,
     points: &mut Vec<Point>,
     notes: &mut Vec<String>,
-    attempts: &mut Vec<Attempt>,
 ) {
     let params: Vec<f64> = match series.knob {
         Knob::Step { h0 } => (0..MAX_HALVINGS).map(|i| h0 / 2f64.powi(i)).collect(),
-        Knob::Tol { .. } if c.quick => vec![1e-5, 1e-9],
-        Knob::Tol { .. } => DOP_TOLS.to_vec(),
+        Knob::Tol if c.quick => vec![1e-5, 1e-9],
+        Knob::Tol => DOP_TOLS.to_vec(),
     };
     let y0 = problem.initial_value();
     let mut last_error: Option<f64> = None;
@@ -262,11 +420,9 @@ fn sweep(
     for &x in &params {
         let what = match series.knob {
             Knob::Step { .. } => format!("h = {x:e}"),
-            Knob::Tol { .. } => format!("tol = {x:e}"),
+            Knob::Tol => format!("tol = {x:e}"),
         };
-        let measured = (series.build)(x)
-            .map_err(err_s)
-            .and_then(|i| with_energy(i, problem, t_end));
+        let measured = with_energy(&series.build, x, problem, t_end);
         let (y, energy, seconds) = match measured {
             Ok(m) => m,
             Err(e) => {
@@ -276,11 +432,6 @@ fn sweep(
         };
         let error = max_diff(&y, y_ref);
         if error.is_nan() || error > ERROR_CEILING {
-            attempts.push(Attempt {
-                series: series.label.clone(),
-                error,
-                seconds,
-            });
             skipped.push(format!("{what} (error {error:.1e})"));
             if seconds > c.budget {
                 break;
@@ -288,12 +439,13 @@ fn sweep(
             continue;
         }
         let mut times = Vec::with_capacity(c.repeats);
+        let mut setups = Vec::with_capacity(c.repeats);
         for _ in 0..c.repeats {
-            match (series.build)(x)
-                .map_err(err_s)
-                .and_then(|i| timed(i, &y0, t_end))
-            {
-                Ok((_, t)) => times.push(t),
+            match timed(&series.build, x, &y0, t_end) {
+                Ok((_, setup, t)) => {
+                    times.push(t);
+                    setups.push(setup);
+                }
                 Err(e) => {
                     skipped.push(format!("{what} (timed run: {e})"));
                     break;
@@ -305,7 +457,7 @@ fn sweep(
         }
         let (h, tol) = match series.knob {
             Knob::Step { .. } => (x, None),
-            Knob::Tol { macro_h } => (macro_h, Some(x)),
+            Knob::Tol => (t_end, Some(x)),
         };
         points.push(Point {
             series: series.label.clone(),
@@ -314,6 +466,7 @@ fn sweep(
             h,
             tol,
             cpu: median(times),
+            setup: median(setups),
             error,
             energy,
         });
@@ -337,12 +490,9 @@ fn ec_reference(
     t_end: f64,
 ) -> Result<(Vec<f64>, f64), String> {
     let y0 = problem.initial_value();
-    let run = |h| {
-        ec(problem, r, r, h, solver())
-            .map_err(err_s)
-            .and_then(|i| timed(i, &y0, t_end))
-            .map(|(y, _)| y)
-    };
+    let p = problem.clone();
+    let build: Build = Box::new(move |h| stepped(ec(&p, r, r, h, solver())));
+    let run = |h| timed(&build, h, &y0, t_end).map(|(y, _, _)| y);
     let fine = run(h)?;
     let coarse = run(2.0 * h)?;
     let estimate = max_diff(&fine, &coarse);
@@ -366,10 +516,11 @@ fn ec_series(problem: &Problem, r: usize, s: usize, h0: f64, group: &'static str
             format!("EC{r}P s={s}")
         },
         group,
+        family: Family::Runtime,
         r: Some(r),
         s: Some(s),
         knob: Knob::Step { h0 },
-        build: Box::new(move |h| ec(&p, r, s, h, solver())),
+        build: Box::new(move |h| stepped(ec(&p, r, s, h, solver()))),
     }
 }
 
@@ -382,23 +533,25 @@ fn step_series(
     Series {
         label: label.to_string(),
         group,
+        family: Family::Peer,
         r: None,
         s: None,
         knob: Knob::Step { h0 },
-        build: Box::new(build),
+        build: Box::new(move |h| stepped(build(h))),
     }
 }
 
-fn dop_series(problem: &Problem, macro_h: f64) -> Series {
+fn dop_series(problem: &Problem) -> Series {
     let p = problem.clone();
     Series {
         label: "DOP853".to_string(),
-        group: "baselines",
+        group: "peers",
+        family: Family::Peer,
         r: None,
         s: None,
-        knob: Knob::Tol { macro_h },
+        knob: Knob::Tol,
         build: Box::new(
-            move |tol| on_system!(&p, sys => boxed(Dop853::with_tolerances(sys, macro_h, tol, tol))),
+            move |tol| on_system!(&p, sys => Ok(Box::new(Dop853::new(sys, tol, tol)?) as BoxedRun)),
         ),
     }
 }
@@ -451,7 +604,7 @@ fn dense_baselines(problem: &Problem, h0: f64) -> Result<Vec<Series>, String> {
 /// TCrP on the second-order form of Duffing: q'' + (ω² + k²) q = 2k²q³, i.e. ∇U = −2k²q³,
 /// U = −k²q⁴/2.
 fn tc_series(r: usize, h0: f64) -> Series {
-    step_series(&format!("TC{r}P"), "TCrP", h0, move |h| {
+    let mut series = step_series(&format!("TC{r}P"), "TCrP", h0, move |h| {
         let k2 = K * K;
         let sys = SecondOrder::with_potential(
             Omega::scalar(OMEGA * OMEGA + k2, 1)?,
@@ -460,7 +613,9 @@ fn tc_series(r: usize, h0: f64) -> Series {
         );
         boxed(TcStepper::with_nodes(sys, r, r, h, solver()))
     })
-    .with_rs(r, r)
+    .with_rs(r, r);
+    series.family = Family::Runtime;
+    series
 }
 
 impl Series {
@@ -485,18 +640,8 @@ fn run_problem(
 ) -> ProblemRun {
     let mut points = Vec::new();
     let mut notes = Vec::new();
-    let mut attempts = Vec::new();
     for s in series {
-        sweep(
-            s,
-            problem,
-            t_end,
-            &y_ref,
-            c,
-            &mut points,
-            &mut notes,
-            &mut attempts,
-        );
+        sweep(s, problem, t_end, &y_ref, c, &mut points, &mut notes);
         if !points.iter().any(|p| p.series == s.label) {
             notes.push(format!(
                 "{}: no point with error ≤ {ERROR_CEILING:e}",
@@ -510,10 +655,12 @@ fn run_problem(
         t_end,
         reference,
         reference_error,
-        series: series.iter().map(|s| (s.label.clone(), s.group)).collect(),
+        series: series
+            .iter()
+            .map(|s| (s.label.clone(), s.group, s.family))
+            .collect(),
         points,
         notes,
-        attempts,
     }
 }
 
@@ -533,8 +680,9 @@ fn duffing(c: &Config) -> Result<ProblemRun, String> {
     for r in 1..=6 {
         series.push(tc_series(r, h0));
     }
+    series.extend(macros::duffing_series(&d, h0));
     series.extend(dense_baselines(&problem, h0)?);
-    series.push(dop_series(&problem, 1.0));
+    series.push(dop_series(&problem));
     Ok(run_problem(
         "duffing",
         format!("Duffing ω = {OMEGA}, k = {K}, T = {t}"),
@@ -559,8 +707,9 @@ fn wind(c: &Config) -> Result<ProblemRun, String> {
     for r in 1..=6 {
         series.push(ec_series(&problem, r, r, h0, "ECrP"));
     }
+    series.extend(macros::wind_series(&Wind::conservative(), h0));
     series.extend(dense_baselines(&problem, h0)?);
-    series.push(dop_series(&problem, 1.0));
+    series.push(dop_series(&problem));
     Ok(run_problem(
         "wind",
         format!("conservative wind (θ = π/2), T = {t}"),
@@ -598,6 +747,7 @@ fn nls(c: &Config) -> Result<ProblemRun, String> {
             .with_rs(r, r),
         );
     }
+    series.extend(macros::nls_series(&n, h0));
     let eei = registry_build("EEI3s4")?;
     let p = problem.clone();
     series.push(step_series("EEI3s4", "baselines", h0, move |h| eei(&p, h)));
@@ -608,7 +758,7 @@ fn nls(c: &Config) -> Result<ProblemRun, String> {
         h0,
         move |h| on_system!(&p, sys => boxed(rkepc2(sys, h, solver()))),
     ));
-    series.push(dop_series(&problem, 0.5));
+    series.push(dop_series(&problem));
     Ok(run_problem(
         "nls",
         format!("NLS N = {NLS_N}, T = {t}"),
@@ -627,34 +777,30 @@ fn nls(c: &Config) -> Result<ProblemRun, String> {
 }
 
 /// The equal-CPU-budget comparison on Duffing ω = 20 over [0, long_t]: EC2P with h = 0.01
-/// against DOP853 with the tolerance whose CPU time is closest to EC2P's.
+/// against DOP853 (one call over [0, T]) with the tolerance whose CPU time is closest to
+/// EC2P's.
 fn long_run(c: &Config) -> Result<LongRun, String> {
     let d = Duffing::new(OMEGA, K).map_err(err_s)?;
     let problem = Problem::Duffing(d);
     let t = c.long_t;
     let (r, ec_h) = (2, 0.01);
     let y0 = problem.initial_value();
-    let build_ec = || ec(&problem, r, r, ec_h, solver()).map_err(err_s);
+    let p = problem.clone();
+    let build_ec: Build = Box::new(move |h| stepped(ec(&p, r, r, h, solver())));
     let mut times = Vec::new();
     for _ in 0..c.repeats {
-        times.push(timed(build_ec()?, &y0, t)?.1);
+        times.push(timed(&build_ec, ec_h, &y0, t)?.2);
     }
     let ec_cpu = median(times);
-    let (_, ec_energy, _) = with_energy(build_ec()?, &problem, t)?;
-    let macro_h = 1.0;
-    let build_dop = |tol: f64| {
-        let build = || -> ecr_runtime::Result<BoxedIntegrator> {
-            on_system!(&problem, sys => boxed(Dop853::with_tolerances(sys, macro_h, tol, tol)))
-        };
-        build().map_err(err_s)
-    };
+    let (_, ec_energy, _) = with_energy(&build_ec, ec_h, &problem, t)?;
+    let build_dop = dop_series(&problem).build;
     // Bisection on log10(tol) in [−14, −3]: the CPU time falls as tol grows.
     let (mut lo, mut hi) = (-14.0f64, -3.0f64);
     let mut search = Vec::new();
     for _ in 0..if c.quick { 3 } else { 6 } {
         let mid = 0.5 * (lo + hi);
         let tol = 10f64.powf(mid);
-        let cpu = timed(build_dop(tol)?, &y0, t)?.1;
+        let cpu = timed(&build_dop, tol, &y0, t)?.2;
         search.push((tol, cpu));
         if cpu > ec_cpu {
             lo = mid;
@@ -673,17 +819,16 @@ fn long_run(c: &Config) -> Result<LongRun, String> {
         .ok_or("no DOP853 run")?;
     let mut times = Vec::new();
     for _ in 0..c.repeats {
-        times.push(timed(build_dop(dop_tol)?, &y0, t)?.1);
+        times.push(timed(&build_dop, dop_tol, &y0, t)?.2);
     }
     let dop_cpu = median(times);
-    let (_, dop_energy, _) = with_energy(build_dop(dop_tol)?, &problem, t)?;
+    let (_, dop_energy, _) = with_energy(&build_dop, dop_tol, &problem, t)?;
     Ok(LongRun {
         t_end: t,
         ec_label: format!("EC{r}P"),
         ec_h,
         ec_cpu,
         ec_energy,
-        dop_macro_h: macro_h,
         dop_tol,
         dop_cpu,
         dop_energy,
@@ -695,5 +840,10 @@ fn long_run(c: &Config) -> Result<LongRun, String> {
 pub fn run_all(c: &Config) -> Result<Results, String> {
     let problems = vec![duffing(c)?, wind(c)?, nls(c)?];
     let long = long_run(c)?;
-    Ok(Results { problems, long })
+    let dop = dop_overhead(c)?;
+    Ok(Results {
+        problems,
+        long,
+        dop,
+    })
 }

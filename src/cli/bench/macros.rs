@@ -1,0 +1,114 @@
+//! The fixed-order steppers of `ecr_method!` in the benchmark: ECrP r = 1..6 (s = r) as a user
+//! writes them in a hot loop — `Ec{r}<_, 2>` with the linear part a `DenseStatic` 2 × 2 and g a
+//! closure (Duffing, wind), `Ec{r}Dyn<_>` with the NLS's FFT operator — with the benchmark's
+//! stage solver. Bit-identical to the run-time stepper's steps (tests/macro_stepper.rs), so
+//! the two series differ only in time.
+
+use super::sweep::{Family, Knob, Series, solver, stepped};
+use crate::cli::reproduce::methods::boxed;
+use ecr_runtime::ecr_method;
+use ecr_runtime::nalgebra::{DMatrix, SMatrix};
+use ecr_runtime::operator::DenseStatic;
+use ecr_runtime::problems::{Duffing, Nls, Wind};
+use ecr_runtime::stepper::Stepper;
+use ecr_runtime::system::Semilinear;
+
+ecr_method!(r = 1);
+ecr_method!(r = 2);
+ecr_method!(r = 3);
+ecr_method!(r = 4);
+ecr_method!(r = 5);
+ecr_method!(r = 6);
+
+fn static_2x2(a: &DMatrix<f64>) -> ecr_runtime::Result<DenseStatic<2>> {
+    DenseStatic::new(SMatrix::<f64, 2, 2>::from_iterator(a.iter().copied()))
+}
+
+fn series(r: usize, h0: f64, group: &'static str, build: super::sweep::BuildFn) -> Series {
+    Series {
+        label: format!("EC{r}P macro"),
+        group,
+        family: Family::Macro,
+        r: Some(r),
+        s: Some(r),
+        knob: Knob::Step { h0 },
+        build,
+    }
+}
+
+/// `Ec{r}<Semilinear<DenseStatic<2>, G>, 2>` for r = 1..6, g = `$g` (a closure).
+macro_rules! static_series {
+    ($a:expr, $g:expr, $h0:expr, $group:expr) => {{
+        let a: DMatrix<f64> = $a;
+        let g = $g;
+        let mut v = Vec::new();
+        macro_rules! one {
+            ($r:literal, $kernel:ident, $ty:ident) => {{
+                let (a, g) = (a.clone(), g.clone());
+                v.push(series(
+                    $r,
+                    $h0,
+                    $group,
+                    Box::new(move |h| {
+                        let sys = Semilinear::new(static_2x2(&a)?, g.clone());
+                        let st: $ty<_, 2> = Stepper::from_kernel($kernel, sys, h, solver())?;
+                        stepped(boxed(Ok(st)))
+                    }),
+                ));
+            }};
+        }
+        one!(1, Ec1Kernel, Ec1);
+        one!(2, Ec2Kernel, Ec2);
+        one!(3, Ec3Kernel, Ec3);
+        one!(4, Ec4Kernel, Ec4);
+        one!(5, Ec5Kernel, Ec5);
+        one!(6, Ec6Kernel, Ec6);
+        v
+    }};
+}
+
+/// Duffing: the macro steppers r = 1..6.
+pub fn duffing_series(d: &Duffing, h0: f64) -> Vec<Series> {
+    let p = d.clone();
+    static_series!(
+        d.linear_matrix(),
+        move |y: &[f64], o: &mut [f64]| p.nonlinear(y, o),
+        h0,
+        "ECrP macro"
+    )
+}
+
+/// The conservative wind problem: the macro steppers r = 1..6.
+pub fn wind_series(w: &Wind, h0: f64) -> Vec<Series> {
+    let p = *w;
+    static_series!(
+        w.linear_matrix(),
+        move |y: &[f64], o: &mut [f64]| p.nonlinear(y, o),
+        h0,
+        "ECrP macro"
+    )
+}
+
+/// The NLS with the FFT operator: `Ec{r}Dyn<NlsSystem>` for r = 1..4.
+pub fn nls_series(n: &Nls, h0: f64) -> Vec<Series> {
+    let mut v = Vec::new();
+    macro_rules! one {
+        ($r:literal, $kernel:ident, $ty:ident) => {{
+            let n = n.clone();
+            v.push(series(
+                $r,
+                h0,
+                "ECrP circulant",
+                Box::new(move |h| {
+                    let st: $ty<_> = Stepper::from_kernel($kernel, n.system()?, h, solver())?;
+                    stepped(boxed(Ok(st)))
+                }),
+            ));
+        }};
+    }
+    one!(1, Ec1Kernel, Ec1Dyn);
+    one!(2, Ec2Kernel, Ec2Dyn);
+    one!(3, Ec3Kernel, Ec3Dyn);
+    one!(4, Ec4Kernel, Ec4Dyn);
+    v
+}
