@@ -58,23 +58,33 @@ struct Rhs<'a, 'o, S: System> {
     system: &'a S,
     /// g(y) and the system's scratch (borrowed per evaluation: `ode_solvers` passes `&self`).
     buffers: RefCell<(Vec<f64>, Vec<f64>)>,
+    /// `scratch_len() > 0`.
+    needs_scratch: bool,
     non_finite: &'a Cell<bool>,
     observer: Option<Observer<'o>>,
 }
 
 impl<S: System> Rhs<'_, '_, S> {
-    #[inline]
+    /// f(y) with g(y) written into the heap buffer.
     fn eval(&self, y: &[f64], dy: &mut [f64]) {
         let mut buffers = self.buffers.borrow_mut();
         let (g, scratch) = &mut *buffers;
+        self.eval_into(y, dy, g, scratch);
+    }
+
+    /// f(y) with g(y) in `g`.
+    #[inline]
+    fn eval_into(&self, y: &[f64], dy: &mut [f64], g: &mut [f64], scratch: &mut [f64]) {
         self.system.linear().apply(y, dy);
         self.system.nonlinear(y, g, scratch);
-        let mut finite = true;
+        // One sum instead of a test per entry: a NaN or ±∞ entry makes it non-finite (so
+        // does an overflow of the sum itself, at values where the state overflows anyway).
+        let mut sum = 0.0;
         for (d, gi) in dy.iter_mut().zip(g.iter()) {
             *d += gi;
-            finite &= d.is_finite();
+            sum += *d;
         }
-        if !finite {
+        if !sum.is_finite() {
             self.non_finite.set(true);
         }
     }
@@ -89,7 +99,14 @@ impl<S: System> Rhs<'_, '_, S> {
 
 impl<const N: usize, S: System> ode_solvers::System<f64, SVector<f64, N>> for Rhs<'_, '_, S> {
     fn system(&self, _t: f64, y: &SVector<f64, N>, dy: &mut SVector<f64, N>) {
-        self.eval(y.as_slice(), dy.as_mut_slice());
+        // g on the stack: no borrow of the shared buffers where the system needs no scratch.
+        let mut g = [0.0; N];
+        if self.needs_scratch {
+            let mut buffers = self.buffers.borrow_mut();
+            self.eval_into(y.as_slice(), dy.as_mut_slice(), &mut g, &mut buffers.1);
+        } else {
+            self.eval_into(y.as_slice(), dy.as_mut_slice(), &mut g, &mut []);
+        }
     }
     fn solout(&mut self, t: f64, y: &SVector<f64, N>, _dy: &SVector<f64, N>) -> bool {
         self.accepted(t, y.as_slice())
@@ -250,6 +267,7 @@ impl<S: System> Dop853<S> {
         let rhs = Rhs {
             system: &self.system,
             buffers: RefCell::new((vec![0.0; d], vec![0.0; self.system.scratch_len()])),
+            needs_scratch: self.system.scratch_len() > 0,
             non_finite: &non_finite,
             observer,
         };

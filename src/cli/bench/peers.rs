@@ -1,0 +1,95 @@
+//! The strong peers in the benchmark: what users of each problem class pick instead of an
+//! exponential collocation method, each built the way its own users build it (set-up in the
+//! constructor, counted in the timings).
+//!
+//! - Duffing (q'' + (ω² + k²)q = 2k²q³): splitting with the exact linear flow (kick–rotate–kick,
+//!   the rotation from the operator's φ-bank) composed to orders 2, 4, 6, 8; Störmer–Verlet
+//!   composed to the same orders; ETDRK4.
+//! - Wind: ETDRK4 (its g changes both components, so g's flow is not explicit and the
+//!   splittings do not apply).
+//! - NLS: split-step Fourier of orders 2, 4, 6 (the exact linear flow by FFT, the nonlinear
+//!   substep exact); ETDRK4 with the FFT operator.
+//!
+//! DOP853 (one call over [0, T]) is added to every problem by the sweep.
+
+use super::sweep::{K, OMEGA, Series, step_series};
+use crate::cli::reproduce::methods::boxed;
+use ecr_runtime::baselines::etdrk4::Etdrk4;
+use ecr_runtime::baselines::split_step::SplitStep;
+use ecr_runtime::baselines::splitting::{LinearFlowSplitting, StormerVerlet};
+use ecr_runtime::problems::{Duffing, Nls, Wind};
+use ecr_runtime::second_order::{Omega, SecondOrder};
+
+/// The group (figure panel) of the peers.
+pub const GROUP: &str = "peers";
+
+fn composition_name(order: usize) -> &'static str {
+    match order {
+        2 => "Strang",
+        4 => "Yoshida",
+        6 => "Kahan–Li",
+        _ => "Kahan–Li",
+    }
+}
+
+/// Duffing: rotation splittings and Störmer–Verlet of orders 2, 4, 6, 8, ETDRK4.
+pub fn duffing(d: &Duffing, h0: f64) -> Vec<Series> {
+    let mut v = Vec::new();
+    for order in [2, 4, 6, 8] {
+        let p = d.clone();
+        v.push(step_series(
+            &format!("Split{order} rot ({})", composition_name(order)),
+            GROUP,
+            h0,
+            move |h| boxed(LinearFlowSplitting::new(p.system()?, order, h)),
+        ));
+    }
+    for order in [2, 4, 6, 8] {
+        v.push(step_series(
+            &format!("SV{order} ({})", composition_name(order)),
+            GROUP,
+            h0,
+            move |h| {
+                let k2 = K * K;
+                let sys = SecondOrder::with_potential(
+                    Omega::scalar(OMEGA * OMEGA + k2, 1)?,
+                    move |q: &[f64], f: &mut [f64]| f[0] = -2.0 * k2 * q[0].powi(3),
+                    move |q: &[f64]| -0.5 * k2 * q[0].powi(4),
+                );
+                boxed(StormerVerlet::new(sys, order, h))
+            },
+        ));
+    }
+    let p = d.clone();
+    v.push(step_series("ETDRK4", GROUP, h0, move |h| {
+        boxed(Etdrk4::new(p.system()?, h))
+    }));
+    v
+}
+
+/// The wind problem: ETDRK4.
+pub fn wind(w: &Wind, h0: f64) -> Vec<Series> {
+    let p = *w;
+    vec![step_series("ETDRK4", GROUP, h0, move |h| {
+        boxed(Etdrk4::new(p.system()?, h))
+    })]
+}
+
+/// The NLS: split-step Fourier of orders 2, 4, 6 and ETDRK4, all with the FFT operator.
+pub fn nls(n: &Nls, h0: f64) -> Vec<Series> {
+    let mut v = Vec::new();
+    for (order, name) in [(2, "Strang"), (4, "Blanes–Moan"), (6, "Kahan–Li")] {
+        let p = n.clone();
+        v.push(step_series(
+            &format!("SSF{order} ({name})"),
+            GROUP,
+            h0,
+            move |h| boxed(SplitStep::nls(p.system()?, order, h)),
+        ));
+    }
+    let p = n.clone();
+    v.push(step_series("ETDRK4", GROUP, h0, move |h| {
+        boxed(Etdrk4::new(p.system()?, h))
+    }));
+    v
+}
