@@ -4,6 +4,7 @@ mod bench;
 #[cfg(test)]
 mod fuzz;
 mod reproduce;
+mod provenance;
 mod run;
 mod tables;
 

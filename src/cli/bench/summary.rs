@@ -138,8 +138,9 @@ pub fn markdown(c: &Config, r: Option<&Results>, sc: Option<&Scaling>, seconds: 
     let w = &mut out;
     let _ = writeln!(
         w,
-        "# ecr bench{}\n\nComputed in {seconds:.1} s.\n",
-        if c.quick { " (--quick)" } else { "" }
+        "# ecr bench{}\n\nComputed in {seconds:.1} s. {}\n",
+        if c.quick { " (--quick)" } else { "" },
+        crate::cli::provenance::line()
     );
     if c.quick {
         let _ = writeln!(
