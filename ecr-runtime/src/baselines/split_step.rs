@@ -14,8 +14,8 @@
 //! * nonlinear `N_t`: `ψ_j ← ψ_j·e^{itρ(|ψ_j|²)}` — `|ψ_j|` is constant along `ψ' = iρψ`, so
 //!   this is its exact flow, O(n) with one `sin_cos` per point.
 //!
-//! For the cubic NLS of the paper ([`Nls`]), `ρ(u) = 2u`: `g = iρψ` is
-//! `(−2(p² + q²)q, 2(p² + q²)p)`, exactly [`Nls::nonlinear`].
+//! For the cubic NLS of the paper ([`Nls`](crate::problems::Nls)), `ρ(u) = 2u`: `g = iρψ` is
+//! `(−2(p² + q²)q, 2(p² + q²)p)`, exactly [`Nls::nonlinear`](crate::problems::Nls::nonlinear).
 //!
 //! A step is `N_{a_0 h} L_{b_1 h} N_{a_1 h} … L_{b_m h} N_{a_m h}` with `a_0 = a_m`
 //! (palindromic, so the method is symmetric):
