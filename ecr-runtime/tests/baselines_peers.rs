@@ -696,3 +696,23 @@ fn stormer_verlet_dense_stiffness_matches_the_modal_system() {
     let diff = max_diff(&[yq[0], yq[1], yp[0], yp[1]], &x);
     assert!(diff <= 1e-13, "dense vs modal Ω: {diff:e}");
 }
+
+/// On a plane wave |ψ| is constant, so the linear and nonlinear flows commute and every
+/// split-step scheme is exact: after n = 100 steps only round-off remains, below one ulp per
+/// substep, (2m + 1)·n·ε (measured 1.3e−14, 6.4e−14, 1.0e−13, 1.6e−13 for orders 2–8). This pins
+/// the sign convention of the linear flow and ρ(u) = 2u to [`Nls::plane_wave`] (ρ(u) = u
+/// would leave an error of ~0.3 here).
+#[test]
+fn split_step_is_exact_on_plane_waves() {
+    let nls = Nls::new(32).unwrap();
+    let (amplitude, wavenumber, t_end) = (0.7, 3, 1.0);
+    let y0 = nls.plane_wave(amplitude, wavenumber, 0.0).unwrap();
+    let exact = nls.plane_wave(amplitude, wavenumber, t_end).unwrap();
+    for (order, linear_substeps) in [(2, 1), (4, 6), (6, 9), (8, 15)] {
+        let mut m = SplitStep::nls(nls.system().unwrap(), order, 0.01).unwrap();
+        let err = max_diff(&run(&mut m, &y0, t_end, 100), &exact);
+        let bound = (2 * linear_substeps + 1) as f64 * 100.0 * f64::EPSILON;
+        println!("plane wave, SplitStep order {order}: error {err:.2e} (bound {bound:.1e})");
+        assert!(err <= bound, "order {order}: {err:e}");
+    }
+}
