@@ -3,8 +3,8 @@
 mod bench;
 #[cfg(test)]
 mod fuzz;
-mod reproduce;
 mod provenance;
+mod reproduce;
 mod run;
 mod tables;
 

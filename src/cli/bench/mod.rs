@@ -7,6 +7,7 @@
 //! output-directory and CSV helpers and plotting code.
 
 mod macros;
+mod peers;
 mod scaling;
 mod summary;
 mod sweep;

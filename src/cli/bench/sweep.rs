@@ -2,7 +2,7 @@
 //! (DOP853: tolerances), each point timed (median of repeated runs, set-up included and also
 //! reported alone) and measured (global error against a reference, max relative energy error).
 
-use super::macros;
+use super::{macros, peers};
 use crate::cli::reproduce::methods::{
     self as registry, BoxedIntegrator, Dyn, Problem, boxed, ec, on_system,
 };
@@ -524,7 +524,7 @@ fn ec_series(problem: &Problem, r: usize, s: usize, h0: f64, group: &'static str
     }
 }
 
-fn step_series(
+pub fn step_series(
     label: &str,
     group: &'static str,
     h0: f64,
@@ -681,6 +681,7 @@ fn duffing(c: &Config) -> Result<ProblemRun, String> {
         series.push(tc_series(r, h0));
     }
     series.extend(macros::duffing_series(&d, h0));
+    series.extend(peers::duffing(&d, h0));
     series.extend(dense_baselines(&problem, h0)?);
     series.push(dop_series(&problem));
     Ok(run_problem(
@@ -708,6 +709,7 @@ fn wind(c: &Config) -> Result<ProblemRun, String> {
         series.push(ec_series(&problem, r, r, h0, "ECrP"));
     }
     series.extend(macros::wind_series(&Wind::conservative(), h0));
+    series.extend(peers::wind(&Wind::conservative(), h0));
     series.extend(dense_baselines(&problem, h0)?);
     series.push(dop_series(&problem));
     Ok(run_problem(
@@ -748,6 +750,7 @@ fn nls(c: &Config) -> Result<ProblemRun, String> {
         );
     }
     series.extend(macros::nls_series(&n, h0));
+    series.extend(peers::nls(&n, h0));
     let eei = registry_build("EEI3s4")?;
     let p = problem.clone();
     series.push(step_series("EEI3s4", "baselines", h0, move |h| eei(&p, h)));
