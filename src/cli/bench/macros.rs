@@ -24,6 +24,15 @@ fn static_2x2(a: &DMatrix<f64>) -> ecr_runtime::Result<DenseStatic<2>> {
     DenseStatic::new(SMatrix::<f64, 2, 2>::from_iterator(a.iter().copied()))
 }
 
+/// y' = Ay + g(y) with a 2 × 2 A as a static matrix and g a closure: how a user writes a
+/// small system.
+pub fn static_system<G: Fn(&[f64], &mut [f64])>(
+    a: &DMatrix<f64>,
+    g: G,
+) -> ecr_runtime::Result<Semilinear<DenseStatic<2>, G>> {
+    Ok(Semilinear::new(static_2x2(a)?, g))
+}
+
 fn series(r: usize, h0: f64, group: &'static str, build: super::sweep::BuildFn) -> Series {
     Series {
         label: format!("EC{r}P macro"),

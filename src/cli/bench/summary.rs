@@ -286,7 +286,7 @@ fn work_precision(w: &mut String, c: &Config, r: &Results) {
         "DOP853's cost per evaluation of f (Duffing ω = 20, T = {}, rtol = atol = {:e}; \
          fastest of several interleaved runs): called directly (a user's own \
          `ode_solvers::System` with an `SVector<f64, 2>` state) {:.1} ns ({} evaluations), \
-         through this benchmark's wrapper on the problem's `System` {:.1} ns ({} evaluations): \
+         through `Dop853` as the DOP853 series calls it (A a static 2 × 2, g the problem's) {:.1} ns ({} evaluations): \
          ratio {:.2}.\n",
         d.t_end,
         d.tol,
