@@ -833,3 +833,65 @@ pub fn observed_order(runs: &[ErrorRun], method: &str, floor: f64) -> OrderFit {
     let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
     fit((sxx > 0.0).then(|| sxy / sxx))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run(h: f64, error: f64) -> ErrorRun {
+        ErrorRun {
+            method: "M".to_string(),
+            h,
+            steps: 1,
+            error,
+            seconds: 0.0,
+            sweeps: 0,
+            g_evals: 0,
+            unconverged_steps: 0,
+        }
+    }
+
+    /// A point at the floor (reference error or round-off) is left out of the fitted order
+    /// and counted as such.
+    #[test]
+    fn observed_order_leaves_out_points_at_the_floor() {
+        let runs: Vec<ErrorRun> = [(0.1, 1e-5), (0.05, 6.25e-7), (0.025, 3.90625e-8)]
+            .iter()
+            .map(|&(h, e)| run(h, e))
+            .chain([run(0.0125, 5e-9)])
+            .collect();
+        let fit = observed_order(&runs, "M", 1e-8);
+        assert_eq!((fit.used, fit.excluded), (3, 1));
+        // Exact powers of 2 and 10: the slope is 4 up to round-off (1e-12 is generous).
+        assert!((fit.order.unwrap() - 4.0).abs() < 1e-12, "{fit:?}");
+        assert_eq!(fit.cell(), "4.00 (3 h)");
+        let all = observed_order(&runs, "M", 0.0);
+        assert_eq!((all.used, all.excluded), (4, 0));
+        assert!(
+            all.order.unwrap() < 3.8,
+            "the floor point flattens the slope (3.69)"
+        );
+        let none = observed_order(&runs, "M", 1.0);
+        assert_eq!((none.order, none.cell().as_str()), (None, "— (at floor)"));
+    }
+
+    /// The progress weights: the NLS costs more per step than the 2 × 2 problems for every
+    /// method, and RKEPC2-conv on the NLS is the most expensive run per step.
+    #[test]
+    fn step_costs_rank_the_runs() {
+        let duffing = Problem::Duffing(Duffing::new(5.0, DUFFING_K).unwrap());
+        let nls = Problem::Nls(Nls::new(NLS_N).unwrap());
+        let names: Vec<&str> = super::super::methods::methods()
+            .iter()
+            .map(|m| m.name)
+            .collect();
+        for m in &names {
+            assert!(step_cost(m, &nls) > 10.0 * step_cost(m, &duffing), "{m}");
+        }
+        let worst = names
+            .iter()
+            .max_by(|a, b| step_cost(a, &nls).total_cmp(&step_cost(b, &nls)))
+            .unwrap();
+        assert_eq!(*worst, "RKEPC2-conv");
+    }
+}

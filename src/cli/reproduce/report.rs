@@ -294,8 +294,9 @@ fn error_section(
         Reference::Ec { r, .. } => {
             let _ = writeln!(
                 out,
-                "Reference: EC{r}P (see Setup), estimated error {}; the smallest error in the \
-                 table is {} times that (reference runs: {:.2} s).\n",
+                "Reference of {}: EC{r}P (see Setup), estimated error {}; the smallest error in \
+                 the table is {} times that (reference runs: {:.2} s).\n",
+                s.id,
                 e(s.reference_error),
                 s.runs
                     .iter()
