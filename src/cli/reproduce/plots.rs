@@ -184,7 +184,7 @@ pub struct Style {
 
 /// The fixed method → style map (name, colour, marker, dashed). A "-conv" variant shares its
 /// method's hue family but is dashed with an open marker, so it stays visible on top of it.
-const STYLES: [(&str, RGBColor, Marker, bool); 18] = [
+const STYLES: [(&str, RGBColor, Marker, bool); 22] = [
     ("EC2P", RGBColor(214, 39, 40), Marker::Dot, false),
     ("EC2P-conv", RGBColor(255, 127, 14), Marker::Ring, true),
     ("RKEPC2", RGBColor(31, 119, 180), Marker::Triangle, false),
@@ -209,6 +209,10 @@ const STYLES: [(&str, RGBColor, Marker, bool); 18] = [
     ("TC2P", RGBColor(214, 39, 40), Marker::OpenDiamond, true),
     ("TC3P", RGBColor(31, 119, 180), Marker::Ring, true),
     ("TC4P", RGBColor(44, 160, 44), Marker::Square, true),
+    ("EC5P", RGBColor(188, 189, 34), Marker::OpenDiamond, true),
+    ("EC6P", RGBColor(23, 190, 207), Marker::Ring, false),
+    ("TC5P", RGBColor(148, 103, 189), Marker::Triangle, true),
+    ("TC6P", RGBColor(255, 127, 14), Marker::Square, false),
 ];
 
 /// Fallback colours and markers for names outside [`STYLES`], chosen by a hash of the name
@@ -576,14 +580,16 @@ fn wrap(text: &str, n: usize) -> Vec<String> {
 }
 
 /// A line of `style` through `points`.
-fn draw_line<DB: DrawingBackend, C: Clone + 'static, P: Clone + 'static>(
+fn draw_line<DB, C, P>(
     area: &DrawingArea<DB, C>,
     points: Vec<P>,
     s: Style,
     width: u32,
 ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>>
 where
-    C: plotters::coord::CoordTranslate<From = P>,
+    DB: DrawingBackend,
+    C: plotters::coord::CoordTranslate<From = P> + Clone + 'static,
+    P: Clone + 'static,
 {
     let st = s.color.stroke_width(width);
     if s.dashed {
