@@ -933,13 +933,22 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             // g at every stage. Not checked here: a non-finite g makes the next sweep's stages
             // non-finite, which the residual catches, or, after the last sweep, y₁ (both then
             // check g to name the cause); only g(y₀) is checked at once.
-            let eval_all = |stages: &[f64], g: &mut [f64], scratch: &mut [f64]| {
-                kernel.each_stage(|j| {
-                    let at = j * d..(j + 1) * d;
-                    system.nonlinear(&stages[at.clone()], &mut g[at], scratch);
-                    Ok(())
-                })
-            };
+            //
+            // `unchanged`: a stage whose value the last sweep left bit for bit as it was, so g
+            // there is already in place (g is a function of y). That happens at a node c = 0
+            // (Lobatto-type kernels, e.g. RKEPC2), whose stage is y₀ at every sweep: one
+            // evaluation of g per sweep saved, results bit-identical.
+            let eval_all =
+                |stages: &[f64], g: &mut [f64], scratch: &mut [f64], unchanged: Option<usize>| {
+                    kernel.each_stage(|j| {
+                        if unchanged == Some(j) {
+                            return Ok(());
+                        }
+                        let at = j * d..(j + 1) * d;
+                        system.nonlinear(&stages[at.clone()], &mut g[at], scratch);
+                        Ok(())
+                    })
+                };
             let mut g_evals;
             if extrapolate {
                 // Start: the previous step's continuous solution at τ = 1 + cᵢ (y₀ and the
@@ -951,7 +960,7 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                 } else {
                     bank.combine(s + 1..2 * s + 1, y0, moments, &coef[pred], stages, ws);
                 }
-                eval_all(stages, g, scratch)?;
+                eval_all(stages, g, scratch, None)?;
                 if !all_finite(g) {
                     return Err(Error::NonFinite(G_NONFINITE));
                 }
@@ -976,6 +985,8 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             g_evals += jacobian_evals;
             let mut sweeps = 0;
             let mut previous = f64::INFINITY;
+            // The stage at a node c = 0, if any (see `eval_all`).
+            let origin = kernel.nodes().iter().position(|&c| c == 0.0);
             let fused = fused.as_deref();
             if fused.is_some() {
                 // e^{cᵢhA} y₀, once per step.
@@ -1017,6 +1028,13 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                     mag = mag.max(a.abs().to_bits());
                 }
                 let residual = diff / f64::from_bits(mag);
+                let unchanged = origin.filter(|&j| {
+                    let at = j * d..(j + 1) * d;
+                    new_stages[at.clone()]
+                        .iter()
+                        .zip(&stages[at])
+                        .all(|(a, b)| a.to_bits() == b.to_bits())
+                });
                 // A copy, not a swap of the two slices: fixed-size stage arrays then stay in
                 // registers.
                 stages.copy_from_slice(new_stages);
@@ -1024,8 +1042,8 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                 if !residual.is_finite() {
                     return Err(Error::NonFinite(g_fault(g, previous).unwrap_or(DIVERGED)));
                 }
-                eval_all(stages, g, scratch)?;
-                g_evals += s;
+                eval_all(stages, g, scratch, unchanged)?;
+                g_evals += s - usize::from(unchanged.is_some());
                 if sweeps_converged(residual, previous, settings.tolerance) {
                     break (residual, true);
                 }

@@ -13,10 +13,9 @@ mod summary;
 mod sweep;
 
 use super::UsageError;
-use super::reproduce::plots::{Curve, Figure, Panel, write_png, write_svg};
+use super::reproduce::plots::{Curve, Figure, Panel, REFERENCE_KEY, write_png, write_svg};
 use super::reproduce::{Csv, num, prepare_dir, write_file};
 use clap::{Args, ValueEnum};
-use plotters::prelude::SeriesLabelPosition;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -109,28 +108,29 @@ fn figure(run: &ProblemRun, energy: bool) -> Figure {
                 .series
                 .iter()
                 .filter(|(l, sg, _)| *sg == g || l == "DOP853")
-                .map(|(label, _, _)| Curve {
-                    label: label.clone(),
-                    points: run
-                        .points
-                        .iter()
-                        .filter(|p| &p.series == label)
-                        .filter_map(|p| Some((log10(p.cpu)?, log10(value(p))?)))
-                        .collect(),
+                .map(|(label, _, _)| {
+                    Curve::new(
+                        label.clone(),
+                        run.points
+                            .iter()
+                            .filter(|p| &p.series == label)
+                            .filter_map(|p| Some((log10(p.cpu)?, log10(value(p))?)))
+                            .collect(),
+                    )
                 })
                 .collect();
-            Panel {
-                title: g.to_string(),
-                x_label: "log10(CPU seconds)".to_string(),
-                y_label: if energy {
-                    "log10(max relative energy error)".to_string()
+            Panel::new(
+                g.to_string(),
+                "log10(CPU seconds)",
+                if energy {
+                    "log10(max relative energy error)"
                 } else {
-                    "log10(global error)".to_string()
+                    "log10(global error)"
                 },
                 curves,
-                markers: true,
-                legend: SeriesLabelPosition::UpperRight,
-            }
+                true,
+            )
+            .with_coincidence_notes()
         })
         .collect();
     Figure {
@@ -184,14 +184,16 @@ fn scaling_csv(s: &scaling::Scaling) -> Csv {
 fn scaling_figure(s: &scaling::Scaling) -> Figure {
     let mut curves: Vec<Curve> = ["1D", "2D"]
         .iter()
-        .map(|case| Curve {
-            label: format!("EC{}P, {case} NLS (FFT)", scaling::R),
-            points: s
-                .points
-                .iter()
-                .filter(|p| p.case == *case)
-                .filter_map(|p| Some(((p.d as f64).log10(), log10(p.seconds_per_step)?)))
-                .collect(),
+        .map(|case| {
+            Curve::labelled(
+                format!("{case} NLS"),
+                format!("EC{}P, {case} NLS (FFT)", scaling::R),
+                s.points
+                    .iter()
+                    .filter(|p| p.case == *case)
+                    .filter_map(|p| Some(((p.d as f64).log10(), log10(p.seconds_per_step)?)))
+                    .collect(),
+            )
         })
         .collect();
     if let Some(last) = s.points.iter().rfind(|p| p.case == "1D") {
@@ -199,26 +201,26 @@ fn scaling_figure(s: &scaling::Scaling) -> Figure {
         let dmin = s.points.iter().map(|p| p.d).min().unwrap_or(last.d) as f64;
         let dmax = s.points.iter().map(|p| p.d).max().unwrap_or(last.d) as f64;
         let line = |d: f64| t1 * d * d.log2() / (d1 * d1.log2());
-        curves.push(Curve {
-            label: "c·d·log d".to_string(),
-            points: [dmin, dmax]
+        curves.push(Curve::labelled(
+            REFERENCE_KEY,
+            "c·d·log d".to_string(),
+            [dmin, dmax]
                 .iter()
                 .filter_map(|&d| Some((d.log10(), log10(line(d))?)))
                 .collect(),
-        });
+        ));
     }
     Figure {
         id: "scaling".to_string(),
         // Short: the single-panel figure is one panel wide, and the embedded font has no "∝".
         caption: format!("EC{}P step cost vs dimension d", scaling::R),
-        panels: vec![Panel {
-            title: "NLS with the circulant (FFT) operator".to_string(),
-            x_label: "log10(d)".to_string(),
-            y_label: "log10(seconds per step)".to_string(),
+        panels: vec![Panel::new(
+            "NLS with the circulant (FFT) operator".to_string(),
+            "log10(d)",
+            "log10(seconds per step)",
             curves,
-            markers: true,
-            legend: SeriesLabelPosition::UpperLeft,
-        }],
+            true,
+        )],
     }
 }
 

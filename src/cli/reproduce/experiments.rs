@@ -108,8 +108,7 @@ impl Reference {
             }
             Reference::Ec { r, h } => format!(
                 "EC{r}P (r = s = {r}, order {}, stage equations iterated to convergence) with \
-                 h = {h:e} = 0.1/2^{}; its error is estimated by the difference to the same \
-                 method with 2h",
+                 h = {h:e} = 0.1/2^{}",
                 2 * r,
                 (0.1 / h).log2().round()
             ),
@@ -218,8 +217,32 @@ pub struct Results {
     pub p3_energy: EnergyStudy,
 }
 
-/// A progress bar over all the steps of the reproduction, drawn on stderr only when stderr is
-/// a terminal.
+/// Expected wall time of one step of `method` on `problem`, in microseconds (measured with a
+/// release build, one core; only the ratios matter). The progress bar counts steps weighted by
+/// it, so that its position, and the ETA indicatif derives from the rate, track time: counted
+/// in plain steps, the bar reached 99 % before the NLS runs, which take most of the time.
+/// Methods not listed count as the most expensive of their problem class.
+pub fn step_cost(method: &str, problem: &Problem) -> f64 {
+    let nls = matches!(problem, Problem::Nls(_));
+    // (Duffing / wind: d = 2, NLS: d = 256 with FFTs.)
+    let (small, large) = match method {
+        "EC2P" => (0.7, 63.0),
+        "EC2P-conv" => (0.8, 74.0),
+        "RKEPC2" => (1.4, 136.0),
+        "RKEPC2-conv" => (3.0, 1000.0),
+        "EEI3s4" => (2.0, 300.0),
+        "DOP853" => (6.0, 120.0),
+        REFERENCE_METHOD => (20.0, 62.0),
+        _ => (6.0, 1000.0),
+    };
+    if nls { large } else { small }
+}
+
+/// The name [`step_cost`] knows the reference runs of the error studies by.
+const REFERENCE_METHOD: &str = "reference";
+
+/// A progress bar over all the runs of the reproduction, each step weighted by its expected
+/// cost ([`step_cost`]); drawn on stderr only when stderr is a terminal.
 pub struct Progress {
     bar: ProgressBar,
 }
@@ -244,8 +267,9 @@ impl Progress {
         self.bar.set_message(msg);
     }
 
-    fn inc(&self, steps: u64) {
-        self.bar.inc(steps);
+    /// Advances by `steps` steps of `cost` µs each (the bar counts nanoseconds).
+    fn inc(&self, steps: u64, cost: f64) {
+        self.bar.inc((steps as f64 * cost * 1e3) as u64);
     }
 
     fn finish(&self) {
@@ -261,13 +285,16 @@ struct Outcome {
 }
 
 /// Integrates `problem` on [0, t_end] with a built integrator, calling `observer(t, y, H)`
-/// every `observe_every` steps (0: never) and advancing the progress bar.
+/// every `observe_every` steps (0: never) and advancing the progress bar by `cost` per step.
+// One flat list of the run's parameters reads better here than a one-use struct.
+#[allow(clippy::too_many_arguments)]
 fn run_one(
     integrator: super::methods::BoxedIntegrator,
     problem: &Problem,
     t_end: f64,
     observe_every: usize,
     progress: &Progress,
+    cost: f64,
     mut observer: impl FnMut(f64, &[f64], Option<f64>),
 ) -> Result<Outcome, String> {
     let mut stepper = Dyn(integrator);
@@ -295,7 +322,7 @@ fn run_one(
         |t, y, e| {
             let n = ((t / h).round() as u64).min(total);
             if n >= done + tick as u64 || n == total {
-                progress.inc(n - done);
+                progress.inc(n - done, cost);
                 done = n;
             }
             if observe_every > 0 {
@@ -304,7 +331,7 @@ fn run_one(
         },
     )
     .map_err(|e| e.to_string());
-    progress.inc(total.saturating_sub(done));
+    progress.inc(total.saturating_sub(done), cost);
     let report = report?;
     if y.iter().any(|v| !v.is_finite()) {
         return Err(format!(
@@ -341,8 +368,17 @@ fn reference_state(
         (Reference::Ec { r, h }, _) => {
             let build =
                 |h| ec(problem, r, r, h, SolverSettings::default()).map_err(|e| e.to_string());
-            let coarse = run_one(build(2.0 * h)?, problem, t_end, 0, progress, |_, _, _| {})?;
-            let fine = run_one(build(h)?, problem, t_end, 0, progress, |_, _, _| {})?;
+            let cost = step_cost(REFERENCE_METHOD, problem);
+            let coarse = run_one(
+                build(2.0 * h)?,
+                problem,
+                t_end,
+                0,
+                progress,
+                cost,
+                |_, _, _| {},
+            )?;
+            let fine = run_one(build(h)?, problem, t_end, 0, progress, cost, |_, _, _| {})?;
             // |ref(2h) − ref(h)| estimates the error of the coarser run: an upper estimate for
             // the reference (unless both sit at the round-off floor).
             let estimate = max_diff(&coarse.y, &fine.y);
@@ -382,7 +418,10 @@ fn error_study(
             progress.message(format!("{id} {label}: {} h = {h}", m.name));
             let outcome = (m.build)(problem, h)
                 .map_err(|e| e.to_string())
-                .and_then(|i| run_one(i, problem, t_end, 0, progress, |_, _, _| {}));
+                .and_then(|i| {
+                    let cost = step_cost(m.name, problem);
+                    run_one(i, problem, t_end, 0, progress, cost, |_, _, _| {})
+                });
             match outcome {
                 Ok(o) => study.runs.push(ErrorRun {
                     method: m.name.to_string(),
@@ -437,7 +476,8 @@ fn energy_study(
         let outcome = (m.build)(problem, h)
             .map_err(|e| e.to_string())
             .and_then(|i| {
-                run_one(i, problem, t_end, 1, progress, |t, y, e| {
+                let cost = step_cost(m.name, problem);
+                run_one(i, problem, t_end, 1, progress, cost, |t, y, e| {
                     if t == 0.0 {
                         return;
                     }
@@ -486,9 +526,18 @@ fn lyapunov_run(
     let h = integrator.step_size();
     let every = (dt / h).round().max(1.0) as usize;
     let mut samples = Vec::new();
-    let o = run_one(integrator, problem, t_end, every, progress, |t, y, e| {
-        samples.push((t, e.unwrap_or_else(|| problem.energy(y))));
-    })?;
+    let cost = step_cost(name, problem);
+    let o = run_one(
+        integrator,
+        problem,
+        t_end,
+        every,
+        progress,
+        cost,
+        |t, y, e| {
+            samples.push((t, e.unwrap_or_else(|| problem.energy(y))));
+        },
+    )?;
     let max_increase = samples
         .windows(2)
         .fold(f64::NEG_INFINITY, |m, w| m.max(w[1].1 - w[0].1));
@@ -589,42 +638,62 @@ pub const P3_REFERENCE: Reference = Reference::Ec {
     h: 0.1 / 256.0,
 };
 
-/// Total steps of all runs (for the progress bar).
-fn total_steps(c: &Config, n_methods: u64) -> u64 {
-    let sum = |t: f64, hs: &[f64]| hs.iter().map(|&h| steps_for(t, h)).sum::<u64>();
-    let reference = |t: f64, r: Reference| match r {
-        Reference::Exact => 0,
-        Reference::Ec { h, .. } => steps_for(t, h) + steps_for(t, 2.0 * h),
+/// Expected cost of all runs, in the progress bar's unit (steps × [`step_cost`] in ns).
+fn total_cost(
+    c: &Config,
+    methods: &[Method],
+    duffing: &Problem,
+    wind: &Problem,
+    nls: &Problem,
+) -> u64 {
+    let steps = |t: f64, hs: &[f64]| hs.iter().map(|&h| steps_for(t, h)).sum::<u64>() as f64;
+    // Every method for `n` steps of `p`.
+    let all = |p: &Problem, n: f64| {
+        methods
+            .iter()
+            .map(|m| n * step_cost(m.name, p))
+            .sum::<f64>()
     };
-    let mut total = 0;
-    total += 3 * n_methods * sum(c.p1_error_t, &p1_error_steps());
-    total += 3 * n_methods * steps_for(c.p1_energy_t, P1_ENERGY_H);
-    total += 2
-        * (n_methods * sum(c.p2_error_t, &p2_error_steps())
-            + reference(c.p2_error_t, P2_REFERENCE));
-    total += n_methods * steps_for(c.p2_energy_t, P2_ENERGY_H);
-    total += n_methods * steps_for(c.p2_lyapunov_t, P2_LYAPUNOV_H)
-        + steps_for(c.p2_lyapunov_t, P2_LYAPUNOV_REF_H);
-    total +=
-        n_methods * sum(c.p3_error_t, &p3_error_steps()) + reference(c.p3_error_t, P3_REFERENCE);
-    total += n_methods * steps_for(c.p3_energy_t, P3_ENERGY_H);
-    total
+    let reference = |p: &Problem, t: f64, r: Reference| match r {
+        Reference::Exact => 0.0,
+        Reference::Ec { h, .. } => steps(t, &[h, 2.0 * h]) * step_cost(REFERENCE_METHOD, p),
+    };
+    let mut total = 0.0;
+    total += 3.0 * all(duffing, steps(c.p1_error_t, &p1_error_steps()));
+    total += 3.0 * all(duffing, steps(c.p1_energy_t, &[P1_ENERGY_H]));
+    total += 2.0
+        * (all(wind, steps(c.p2_error_t, &p2_error_steps()))
+            + reference(wind, c.p2_error_t, P2_REFERENCE));
+    total += all(wind, steps(c.p2_energy_t, &[P2_ENERGY_H]));
+    total += all(wind, steps(c.p2_lyapunov_t, &[P2_LYAPUNOV_H]))
+        + steps(c.p2_lyapunov_t, &[P2_LYAPUNOV_REF_H]) * step_cost(PRIMARY, wind);
+    total += all(nls, steps(c.p3_error_t, &p3_error_steps()))
+        + reference(nls, c.p3_error_t, P3_REFERENCE);
+    total += all(nls, steps(c.p3_energy_t, &[P3_ENERGY_H]));
+    (total * 1e3) as u64
 }
 
 /// Runs every experiment of §9 with every method.
 pub fn run_all(c: &Config, methods: &[Method]) -> Result<Results, String> {
-    let progress = Progress::new(total_steps(c, methods.len() as u64));
     let err = |e: ecr_runtime::Error| e.to_string();
+    let duffings = OMEGAS
+        .iter()
+        .map(|&omega| Duffing::new(omega, DUFFING_K).map(Problem::Duffing))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(err)?;
+    let wind = Problem::Wind(Wind::conservative());
+    let nls = Problem::Nls(Nls::new(NLS_N).map_err(err)?);
+    let progress = Progress::new(total_cost(c, methods, &duffings[0], &wind, &nls));
     let mut p1_errors = Vec::new();
     let mut p1_energy = Vec::new();
     for (i, &omega) in OMEGAS.iter().enumerate() {
         let sub = ['a', 'b', 'c'][i];
-        let problem = Problem::Duffing(Duffing::new(omega, DUFFING_K).map_err(err)?);
+        let problem = &duffings[i];
         let label = format!("Duffing, ω = {omega}");
         p1_errors.push(error_study(
             &format!("p1-1{sub}"),
             label.clone(),
-            &problem,
+            problem,
             Reference::Exact,
             c.p1_error_t,
             &p1_error_steps(),
@@ -634,14 +703,13 @@ pub fn run_all(c: &Config, methods: &[Method]) -> Result<Results, String> {
         p1_energy.push(energy_study(
             &format!("p1-2{sub}"),
             label,
-            &problem,
+            problem,
             c.p1_energy_t,
             P1_ENERGY_H,
             methods,
             &progress,
         ));
     }
-    let wind = Problem::Wind(Wind::conservative());
     let p2_errors = error_study(
         "p2-1a",
         "wind, θ = π/2".to_string(),
@@ -682,7 +750,6 @@ pub fn run_all(c: &Config, methods: &[Method]) -> Result<Results, String> {
         methods,
         &progress,
     )?;
-    let nls = Problem::Nls(Nls::new(NLS_N).map_err(err)?);
     let p3_errors = error_study(
         "p3a",
         format!("NLS, N = {NLS_N}"),
@@ -715,21 +782,116 @@ pub fn run_all(c: &Config, methods: &[Method]) -> Result<Results, String> {
     })
 }
 
+/// An observed order and the points it rests on.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OrderFit {
+    /// The slope; None with fewer than two usable points.
+    pub order: Option<f64>,
+    /// Points fitted.
+    pub used: usize,
+    /// Points left out: at or below the floor (reference error or round-off).
+    pub excluded: usize,
+}
+
+impl OrderFit {
+    /// A table cell: "4.01", "4.01 (3 h)" when points were left out, "—" otherwise.
+    pub fn cell(&self) -> String {
+        match (self.order, self.excluded) {
+            (Some(p), 0) => format!("{p:.2}"),
+            (Some(p), _) => format!("{p:.2} ({} h)", self.used),
+            (None, 0) => "—".to_string(),
+            (None, _) => "— (at floor)".to_string(),
+        }
+    }
+}
+
 /// Least-squares slope of log10(error) against log10(h) (the observed order), over the runs
-/// of `method` with a positive finite error; None with fewer than two such points.
-pub fn observed_order(runs: &[ErrorRun], method: &str) -> Option<f64> {
-    let pts: Vec<(f64, f64)> = runs
+/// of `method` with a finite error above `floor` (points at the reference's error or at
+/// round-off would flatten the slope); no order with fewer than two such points.
+pub fn observed_order(runs: &[ErrorRun], method: &str, floor: f64) -> OrderFit {
+    let mine = runs
         .iter()
-        .filter(|r| r.method == method && r.error > 0.0 && r.error.is_finite())
+        .filter(|r| r.method == method && r.error.is_finite());
+    let pts: Vec<(f64, f64)> = mine
+        .clone()
+        .filter(|r| r.error > floor && r.error > 0.0)
         .map(|r| (r.h.log10(), r.error.log10()))
         .collect();
+    let excluded = mine.count() - pts.len();
+    let fit = |order| OrderFit {
+        order,
+        used: pts.len(),
+        excluded,
+    };
     if pts.len() < 2 {
-        return None;
+        return fit(None);
     }
     let n = pts.len() as f64;
     let mx = pts.iter().map(|p| p.0).sum::<f64>() / n;
     let my = pts.iter().map(|p| p.1).sum::<f64>() / n;
     let sxx: f64 = pts.iter().map(|p| (p.0 - mx).powi(2)).sum();
     let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
-    (sxx > 0.0).then(|| sxy / sxx)
+    fit((sxx > 0.0).then(|| sxy / sxx))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run(h: f64, error: f64) -> ErrorRun {
+        ErrorRun {
+            method: "M".to_string(),
+            h,
+            steps: 1,
+            error,
+            seconds: 0.0,
+            sweeps: 0,
+            g_evals: 0,
+            unconverged_steps: 0,
+        }
+    }
+
+    /// A point at the floor (reference error or round-off) is left out of the fitted order
+    /// and counted as such.
+    #[test]
+    fn observed_order_leaves_out_points_at_the_floor() {
+        let runs: Vec<ErrorRun> = [(0.1, 1e-5), (0.05, 6.25e-7), (0.025, 3.90625e-8)]
+            .iter()
+            .map(|&(h, e)| run(h, e))
+            .chain([run(0.0125, 5e-9)])
+            .collect();
+        let fit = observed_order(&runs, "M", 1e-8);
+        assert_eq!((fit.used, fit.excluded), (3, 1));
+        // Exact powers of 2 and 10: the slope is 4 up to round-off (1e-12 is generous).
+        assert!((fit.order.unwrap() - 4.0).abs() < 1e-12, "{fit:?}");
+        assert_eq!(fit.cell(), "4.00 (3 h)");
+        let all = observed_order(&runs, "M", 0.0);
+        assert_eq!((all.used, all.excluded), (4, 0));
+        assert!(
+            all.order.unwrap() < 3.8,
+            "the floor point flattens the slope (3.69)"
+        );
+        let none = observed_order(&runs, "M", 1.0);
+        assert_eq!((none.order, none.cell().as_str()), (None, "— (at floor)"));
+    }
+
+    /// The progress weights: the NLS costs more per step than the 2 × 2 problems for every
+    /// method, and RKEPC2-conv on the NLS is the most expensive run per step.
+    #[test]
+    fn step_costs_rank_the_runs() {
+        let duffing = Problem::Duffing(Duffing::new(5.0, DUFFING_K).unwrap());
+        let nls = Problem::Nls(Nls::new(NLS_N).unwrap());
+        let names: Vec<&str> = super::super::methods::methods()
+            .iter()
+            .map(|m| m.name)
+            .collect();
+        for m in &names {
+            assert!(step_cost(m, &nls) > 10.0 * step_cost(m, &duffing), "{m}");
+        }
+        let worst = names
+            .iter()
+            .max_by(|a, b| step_cost(a, &nls).total_cmp(&step_cost(b, &nls)))
+            .unwrap();
+        assert_eq!(*worst, "RKEPC2-conv");
+    }
 }

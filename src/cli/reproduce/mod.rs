@@ -86,7 +86,8 @@ fn write_outputs(
         write_file(dir, &name, csv.render().as_bytes())?;
         names.push(name);
     }
-    for figure in plots::figures(results) {
+    let method_names: Vec<&str> = methods.iter().map(|m| m.name).collect();
+    for figure in plots::figures(results, &method_names) {
         for (ext, result) in [
             (
                 "png",
