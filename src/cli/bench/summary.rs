@@ -121,6 +121,17 @@ fn cheapest<'a>(
         .min_by(|a, b| a.1.total_cmp(&b.1))
 }
 
+/// A ratio to two significant digits (0.63, 0.028, 1.5e-3).
+fn ratio(x: f64) -> String {
+    if x >= 0.095 {
+        format!("{x:.2}")
+    } else if x >= 0.001 {
+        format!("{:.*}", (1.0 - x.log10().floor()) as usize, x)
+    } else {
+        format!("{x:.1e}")
+    }
+}
+
 fn secs(x: f64, bound: bool) -> String {
     format!("{}{x:.2e} s", if bound { "≤ " } else { "" })
 }
@@ -263,7 +274,7 @@ fn work_precision(w: &mut String, c: &Config, r: &Results) {
             let rt = cheapest(&all, |e| e.family == Family::Runtime);
             let mac = cheapest(&all, |e| e.family == Family::Macro);
             let ratio = match (ours, peer) {
-                (Some((_, a, _)), Some((_, b, _))) => format!("**{:.2}**", a / b),
+                (Some((_, a, _)), Some((_, b, _))) => format!("**{}**", ratio(a / b)),
                 (Some(_), None) => "no peer reaches it".to_string(),
                 (None, Some(_)) => "ours do not reach it".to_string(),
                 (None, None) => "-".to_string(),
@@ -399,7 +410,7 @@ fn problem_section(w: &mut String, p: &ProblemRun) {
                 .fold(f64::INFINITY, f64::min);
             let _ = match per_target[i].cost {
                 Cost::Reached { cpu, bound } => {
-                    write!(w, " {} (×{:.2}) |", secs(cpu, bound), cpu / best)
+                    write!(w, " {} (×{}) |", secs(cpu, bound), ratio(cpu / best))
                 }
                 Cost::BelowFloor(_) => write!(w, " floor |"),
                 Cost::NotReached => write!(w, " not reached |"),
@@ -414,4 +425,63 @@ fn problem_section(w: &mut String, p: &ProblemRun) {
         }
     }
     let _ = writeln!(w);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn point(error: f64, cpu: f64) -> Point {
+        Point {
+            series: "m".into(),
+            r: None,
+            s: None,
+            h: 1.0,
+            tol: None,
+            cpu,
+            setup: 0.0,
+            error,
+            energy: 0.0,
+        }
+    }
+
+    /// Errors 1e-6, 1e-8, 9e-9, 5e-10 (lucky), 3e-9: the refinement from 1e-8 no longer
+    /// halves the error, so the floor is the largest error from 1e-8 on, and the lucky 5e-10
+    /// does not make 1e-9 reached.
+    #[test]
+    fn floor_and_cost_ignore_lucky_points() {
+        let pts = [
+            point(1e-6, 1.0),
+            point(1e-8, 2.0),
+            point(9e-9, 4.0),
+            point(5e-10, 8.0),
+            point(3e-9, 16.0),
+        ];
+        let refs: Vec<&Point> = pts.iter().collect();
+        assert_eq!(floor(&refs), Some(1e-8));
+        assert_eq!(cost_to_reach(&refs, 1e-9), Cost::BelowFloor(1e-8));
+        assert!(matches!(
+            cost_to_reach(&refs, 1e-7),
+            Cost::Reached { bound: false, .. }
+        ));
+        // Without a stall there is no floor: a steadily converging series.
+        let clean: Vec<Point> = (0..5)
+            .map(|i| point(10f64.powi(-2 * i), 2f64.powi(i)))
+            .collect();
+        let refs: Vec<&Point> = clean.iter().collect();
+        assert_eq!(floor(&refs), None);
+        let Cost::Reached { cpu, bound } = cost_to_reach(&refs, 1e-3) else {
+            panic!("1e-3 is reached")
+        };
+        assert!(!bound && cpu > 2.0 && cpu < 4.0, "{cpu}");
+    }
+
+    #[test]
+    fn ratios_have_two_significant_digits() {
+        assert_eq!(ratio(0.63), "0.63");
+        assert_eq!(ratio(1.234), "1.23");
+        assert_eq!(ratio(0.028), "0.028");
+        assert_eq!(ratio(0.0029), "0.0029");
+        assert_eq!(ratio(0.00042), "4.2e-4");
+    }
 }

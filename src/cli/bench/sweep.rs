@@ -628,7 +628,7 @@ fn dense_baselines(problem: &Problem, h0: f64) -> Result<Vec<Series>, String> {
 /// TCrP on the second-order form of Duffing: q'' + (ω² + k²) q = 2k²q³, i.e. ∇U = −2k²q³,
 /// U = −k²q⁴/2.
 fn tc_series(r: usize, h0: f64) -> Series {
-    let mut series = step_series(&format!("TC{r}P"), "TCrP", h0, move |h| {
+    step_series(&format!("TC{r}P"), "TCrP", h0, move |h| {
         let k2 = K * K;
         let sys = SecondOrder::with_potential(
             Omega::scalar(OMEGA * OMEGA + k2, 1)?,
@@ -637,15 +637,20 @@ fn tc_series(r: usize, h0: f64) -> Series {
         );
         boxed(TcStepper::with_nodes(sys, r, r, h, solver()))
     })
-    .with_rs(r, r);
-    series.family = Family::Runtime;
-    series
+    .with_rs(r, r)
+    .ours()
 }
 
 impl Series {
     fn with_rs(mut self, r: usize, s: usize) -> Self {
         self.r = Some(r);
         self.s = Some(s);
+        self
+    }
+
+    /// Marks a series as one of this project's methods with the run-time stepper.
+    fn ours(mut self) -> Self {
+        self.family = Family::Runtime;
         self
     }
 }
@@ -770,7 +775,8 @@ fn nls(c: &Config) -> Result<ProblemRun, String> {
             step_series(&format!("EC{r}P dense"), "ECrP dense", h0, move |h| {
                 boxed(EcStepper::with_nodes(n.dense_system()?, r, r, h, solver()))
             })
-            .with_rs(r, r),
+            .with_rs(r, r)
+            .ours(),
         );
     }
     series.extend(macros::nls_series(&n, h0));
