@@ -74,6 +74,62 @@ fn duffing_is_accurate_and_reports_every_field() {
     assert!(v["wall_seconds"].as_f64().unwrap() >= 0.0);
 }
 
+/// The run ends at --t-end exactly and reports the time reached (issue 18, items 1 and 2):
+/// h larger than the interval takes one shortened step (it used to take none and report
+/// t_end = 0 with a "global error" of 0), and a T that is 9e−10 relative past a multiple of h
+/// gets its shortened last step (the step count used to be rounded with a 1e−9 relative slack,
+/// so the run stopped short while the report claimed T and the error was measured there).
+#[test]
+fn the_end_time_is_reached_and_reported() {
+    let v = run_ok(&[
+        "--problem",
+        "duffing",
+        "--r",
+        "2",
+        "--h",
+        "1e10",
+        "--t-end",
+        "1",
+    ]);
+    assert_eq!(v["t_end"].as_f64(), Some(1.0));
+    assert_eq!(v["steps"], 1);
+    let global = v["global_error"].as_f64().unwrap();
+    assert!(
+        global > 0.0 && global < 1.0,
+        "one step of h = 1: error {global:e}"
+    );
+    let v = run_ok(&[
+        "--problem",
+        "duffing",
+        "--r",
+        "2",
+        "--h",
+        "1e-3",
+        "--t-end",
+        "10.000000009",
+    ]);
+    assert_eq!(v["t_end"].as_f64(), Some(10.000000009));
+    assert_eq!(v["steps"], 10_001);
+    // Order 4 with h = 1e-3 over [0, 10]: ≈ 1e-12; the old missing 9e-9 of time left an
+    // error of |y'|·9e-9 ≈ 5e-8.
+    let global = v["global_error"].as_f64().unwrap();
+    assert!(global < 1e-10, "global error {global:e}");
+    let v = run_ok(&[
+        "--problem",
+        "duffing",
+        "--r",
+        "2",
+        "--h",
+        "0.3",
+        "--t-end",
+        "1",
+    ]);
+    assert_eq!(
+        (v["t_end"].as_f64(), v["steps"].as_u64()),
+        (Some(1.0), Some(4))
+    );
+}
+
 /// --extrapolate: the same solution to the solver tolerance, fewer sweeps.
 #[test]
 fn extrapolating_predictor_saves_sweeps() {

@@ -78,6 +78,7 @@ pub fn hbvm<S: System>(
     settings: SolverSettings,
 ) -> Result<Hbvm<S>> {
     let kernel = RuntimeKernel::with_quadrature(kind, s, k)?;
+    crate::system::check_system(&system)?;
     Stepper::from_kernel(kernel, WholeField::new(system), h, settings)
 }
 
@@ -141,6 +142,7 @@ impl<S: System> ExpAvf<S> {
     pub fn new(system: S, k: usize, h: f64, settings: SolverSettings) -> Result<Self> {
         settings.validate()?;
         settings.require_fixed_point("ExpAvf")?;
+        crate::system::check_system(&system)?;
         let c = coefficients(1, k)?;
         let d = system.dim();
         let bank = system.linear().phi_bank(h, &[1.0], 1)?;
@@ -216,7 +218,7 @@ impl<S: System> ExpAvf<S> {
             sweeps += 1;
             let residual = diff / mag;
             if !residual.is_finite() {
-                return Err(Error::NonFinite("the fixed-point iteration diverged"));
+                return Err(crate::stepper::stages_fault(previous));
             }
             if sweeps_converged(residual, previous, self.settings.tolerance) {
                 break (residual, true);

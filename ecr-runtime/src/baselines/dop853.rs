@@ -99,6 +99,7 @@ impl<S: System> Dop853<S> {
                 )));
             }
         }
+        crate::system::check_system(&system)?;
         let d = system.dim();
         let scratch = RefCell::new(vec![0.0; system.scratch_len()]);
         Ok(Dop853 {

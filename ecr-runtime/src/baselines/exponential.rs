@@ -200,6 +200,7 @@ impl<S: System, J: Fn(&[f64], &mut DMatrix<f64>)> Exprb43<S, J> {
 
     fn build(system: S, h: f64, source: JacobianSource<J>) -> Result<Self> {
         check_h(h)?;
+        crate::system::check_system(&system)?;
         let a = dense_linear(&system)?;
         let d = a.nrows();
         let z = || DMatrix::zeros(d, d);
@@ -583,6 +584,7 @@ impl<S: System> HochOst4<S> {
     /// whatever [`phi_dense`] reports for hA.
     pub fn new(system: S, h: f64) -> Result<Self> {
         check_h(h)?;
+        crate::system::check_system(&system)?;
         let a = dense_linear(&system)?;
         let d = a.nrows();
         let c = HochOst4Coefficients::new(&a, h)?;

@@ -228,6 +228,7 @@ impl<S: System> Exprb43Krylov<S> {
         if !(h.is_finite() && h > 0.0) {
             return Err(Error::InvalidStepSize(h));
         }
+        crate::system::check_system(&system)?;
         let d = system.dim();
         let v = || vec![0.0; d];
         Ok(Exprb43Krylov {
