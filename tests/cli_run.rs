@@ -347,6 +347,64 @@ fn bad_input_gives_one_line_and_exit_2() {
     }
 }
 
+/// Errors caused by an input name it, numbers are printed in shortest form, and messages have
+/// no stray spaces (issue 18, item 9). They used to say "matrix contains NaN or infinity"
+/// (--h 1e308), "dense operator contains NaN or infinity" (--omega 1e200), print θ = 1e300
+/// with 301 digits, and carry 18 spaces from a string continuation (--newton with tc).
+#[test]
+fn errors_name_the_input_that_caused_them() {
+    let fail = |args: &[&str]| {
+        let mut full = vec!["run"];
+        full.extend_from_slice(args);
+        let (code, out, err) = ecr(&full);
+        assert_eq!(code, 2, "{full:?}: stdout {out} stderr {err}");
+        assert_eq!(err.lines().count(), 1, "{full:?}: {err}");
+        assert!(!err.contains("  "), "{full:?}: stray spaces in {err:?}");
+        assert!(err.len() < 300, "{full:?}: {err}");
+        err
+    };
+    let base = ["--problem", "duffing", "--r", "2", "--t-end", "1"];
+    let with = |extra: &[&'static str]| {
+        let mut v: Vec<&str> = base.to_vec();
+        v.extend_from_slice(extra);
+        v
+    };
+    let err = fail(&with(&["--h", "1e308"]));
+    assert!(err.contains("step size h = 1e308"), "{err}");
+    let err = fail(&with(&["--h", "0.01", "--omega", "1e200"]));
+    assert!(
+        err.contains("ω = 1e200") && err.contains("overflows"),
+        "{err}"
+    );
+    let err = fail(&[
+        "--problem",
+        "wind",
+        "--r",
+        "2",
+        "--h",
+        "0.01",
+        "--t-end",
+        "1",
+        "--theta",
+        "1e300",
+    ]);
+    assert!(err.contains("θ = 1e300"), "{err}");
+    let err = fail(&[
+        "--problem",
+        "fpu",
+        "--method",
+        "tc",
+        "--r",
+        "2",
+        "--h",
+        "0.01",
+        "--t-end",
+        "1",
+        "--newton",
+    ]);
+    assert!(err.contains("Newton is implemented"), "{err}");
+}
+
 #[test]
 fn fpu_with_tc_rknc_and_ec() {
     let run = |extra: &[&str]| {
