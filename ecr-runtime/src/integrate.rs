@@ -151,7 +151,7 @@ impl StepPlan {
         }
         let span = t_end - t0;
         let ratio = span / h;
-        if !(ratio <= (1u64 << 52) as f64) {
+        if ratio > (1u64 << 52) as f64 {
             return Err(Error::InvalidInput(format!(
                 "t_end − t0 = {span:?} needs more than 2^52 steps of h = {h:?}"
             )));
