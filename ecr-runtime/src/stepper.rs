@@ -857,8 +857,10 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
     ///
     /// # Errors
     /// [`Error::DimensionMismatch`] for a wrong length, [`Error::NonFinite`] if y or g(Y) is
-    /// NaN/infinite, [`Error::NoConvergence`] if the sweeps do not converge and
-    /// [`SweepLimit::Error`] is set. On error, y is unchanged.
+    /// NaN/infinite or the iteration diverges, [`Error::Overflow`] if the stage values or y₁
+    /// overflow while the iteration is not diverging (the solution leaves the f64 range within
+    /// the step, or h is unstable for it), [`Error::NoConvergence`] if the sweeps do not
+    /// converge and [`SweepLimit::Error`] is set. On error, y is unchanged.
     pub fn step(&mut self, y: &mut [f64]) -> Result<StepReport> {
         let d = self.buf.dim();
         let (s, m) = (self.kernel.s(), self.kernel.r());

@@ -68,7 +68,8 @@ pub type Hbvm<S> = Stepper<RuntimeKernel, WholeField<S>, VecBuffers>;
 /// HBVM(k, s): polynomial degree s, k ≥ s quadrature points of the given kind.
 ///
 /// # Errors
-/// [`Error::InvalidParameter`] for s = 0, k < s (Lobatto: k ≥ 2), and the stepper's errors.
+/// [`Error::InvalidParameter`] for s = 0, k < s (Lobatto: k ≥ 2), the errors of
+/// [`check_system`](crate::system::check_system) for `system`, and the stepper's errors.
 pub fn hbvm<S: System>(
     system: S,
     k: usize,
@@ -138,7 +139,8 @@ impl<S: System> ExpAvf<S> {
     /// The method with a k-point Gauss rule and step size h.
     ///
     /// # Errors
-    /// [`Error::InvalidParameter`] for k = 0 or bad settings, [`Error::InvalidStepSize`].
+    /// [`Error::InvalidParameter`] for k = 0 or bad settings, [`Error::InvalidStepSize`], and
+    /// the errors of [`check_system`](crate::system::check_system).
     pub fn new(system: S, k: usize, h: f64, settings: SolverSettings) -> Result<Self> {
         settings.validate()?;
         settings.require_fixed_point("ExpAvf")?;

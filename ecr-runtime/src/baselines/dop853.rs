@@ -87,7 +87,7 @@ impl<S: System> Dop853<S> {
     ///
     /// # Errors
     /// [`Error::InvalidStepSize`]; [`Error::InvalidParameter`] unless rtol and atol are finite
-    /// and positive.
+    /// and positive; the errors of [`check_system`](crate::system::check_system).
     pub fn with_tolerances(system: S, h: f64, rtol: f64, atol: f64) -> Result<Self> {
         if !(h.is_finite() && h > 0.0) {
             return Err(Error::InvalidStepSize(h));
