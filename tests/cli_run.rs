@@ -74,6 +74,62 @@ fn duffing_is_accurate_and_reports_every_field() {
     assert!(v["wall_seconds"].as_f64().unwrap() >= 0.0);
 }
 
+/// The run ends at --t-end exactly and reports the time reached (issue 18, items 1 and 2):
+/// h larger than the interval takes one shortened step (it used to take none and report
+/// t_end = 0 with a "global error" of 0), and a T that is 9e−10 relative past a multiple of h
+/// gets its shortened last step (the step count used to be rounded with a 1e−9 relative slack,
+/// so the run stopped short while the report claimed T and the error was measured there).
+#[test]
+fn the_end_time_is_reached_and_reported() {
+    let v = run_ok(&[
+        "--problem",
+        "duffing",
+        "--r",
+        "2",
+        "--h",
+        "1e10",
+        "--t-end",
+        "1",
+    ]);
+    assert_eq!(v["t_end"].as_f64(), Some(1.0));
+    assert_eq!(v["steps"], 1);
+    let global = v["global_error"].as_f64().unwrap();
+    assert!(
+        global > 0.0 && global < 1.0,
+        "one step of h = 1: error {global:e}"
+    );
+    let v = run_ok(&[
+        "--problem",
+        "duffing",
+        "--r",
+        "2",
+        "--h",
+        "1e-3",
+        "--t-end",
+        "10.000000009",
+    ]);
+    assert_eq!(v["t_end"].as_f64(), Some(10.000000009));
+    assert_eq!(v["steps"], 10_001);
+    // Order 4 with h = 1e-3 over [0, 10]: ≈ 1e-12; the old missing 9e-9 of time left an
+    // error of |y'|·9e-9 ≈ 5e-8.
+    let global = v["global_error"].as_f64().unwrap();
+    assert!(global < 1e-10, "global error {global:e}");
+    let v = run_ok(&[
+        "--problem",
+        "duffing",
+        "--r",
+        "2",
+        "--h",
+        "0.3",
+        "--t-end",
+        "1",
+    ]);
+    assert_eq!(
+        (v["t_end"].as_f64(), v["steps"].as_u64()),
+        (Some(1.0), Some(4))
+    );
+}
+
 /// --extrapolate: the same solution to the solver tolerance, fewer sweeps.
 #[test]
 fn extrapolating_predictor_saves_sweeps() {
@@ -289,6 +345,64 @@ fn bad_input_gives_one_line_and_exit_2() {
         assert_eq!(code, 2, "{args:?}: {err}");
         assert_eq!(err.lines().count(), 1, "{args:?}: {err}");
     }
+}
+
+/// Errors caused by an input name it, numbers are printed in shortest form, and messages have
+/// no stray spaces (issue 18, item 9). They used to say "matrix contains NaN or infinity"
+/// (--h 1e308), "dense operator contains NaN or infinity" (--omega 1e200), print θ = 1e300
+/// with 301 digits, and carry 18 spaces from a string continuation (--newton with tc).
+#[test]
+fn errors_name_the_input_that_caused_them() {
+    let fail = |args: &[&str]| {
+        let mut full = vec!["run"];
+        full.extend_from_slice(args);
+        let (code, out, err) = ecr(&full);
+        assert_eq!(code, 2, "{full:?}: stdout {out} stderr {err}");
+        assert_eq!(err.lines().count(), 1, "{full:?}: {err}");
+        assert!(!err.contains("  "), "{full:?}: stray spaces in {err:?}");
+        assert!(err.len() < 300, "{full:?}: {err}");
+        err
+    };
+    let base = ["--problem", "duffing", "--r", "2", "--t-end", "1"];
+    let with = |extra: &[&'static str]| {
+        let mut v: Vec<&str> = base.to_vec();
+        v.extend_from_slice(extra);
+        v
+    };
+    let err = fail(&with(&["--h", "1e308"]));
+    assert!(err.contains("step size h = 1e308"), "{err}");
+    let err = fail(&with(&["--h", "0.01", "--omega", "1e200"]));
+    assert!(
+        err.contains("ω = 1e200") && err.contains("overflows"),
+        "{err}"
+    );
+    let err = fail(&[
+        "--problem",
+        "wind",
+        "--r",
+        "2",
+        "--h",
+        "0.01",
+        "--t-end",
+        "1",
+        "--theta",
+        "1e300",
+    ]);
+    assert!(err.contains("θ = 1e300"), "{err}");
+    let err = fail(&[
+        "--problem",
+        "fpu",
+        "--method",
+        "tc",
+        "--r",
+        "2",
+        "--h",
+        "0.01",
+        "--t-end",
+        "1",
+        "--newton",
+    ]);
+    assert!(err.contains("Newton is implemented"), "{err}");
 }
 
 #[test]

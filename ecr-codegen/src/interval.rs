@@ -50,6 +50,12 @@ impl Interval {
 
     /// Interval sum.
     pub fn add(&self, o: &Interval) -> Interval {
+        if let (Some(a), Some(b)) = (Dyadic2::of(self), Dyadic2::of(o)) {
+            return Interval {
+                lo: Dyadic::sum(&a.lo, &b.lo),
+                hi: Dyadic::sum(&a.hi, &b.hi),
+            };
+        }
         Interval {
             lo: &self.lo + &o.lo,
             hi: &self.hi + &o.hi,
@@ -58,6 +64,12 @@ impl Interval {
 
     /// Interval difference.
     pub fn sub(&self, o: &Interval) -> Interval {
+        if let (Some(a), Some(b)) = (Dyadic2::of(self), Dyadic2::of(o)) {
+            return Interval {
+                lo: Dyadic::sum(&a.lo, &b.hi.neg()),
+                hi: Dyadic::sum(&a.hi, &b.lo.neg()),
+            };
+        }
         Interval {
             lo: &self.lo - &o.hi,
             hi: &self.hi - &o.lo,
@@ -65,7 +77,27 @@ impl Interval {
     }
 
     /// Interval product.
+    ///
+    /// Dyadic endpoints (m/2^e: everything [`rounded`](Self::rounded), the Gauss node
+    /// brackets) are multiplied in integers, without the gcd reductions of rational arithmetic;
+    /// the values are the same.
     pub fn mul(&self, o: &Interval) -> Interval {
+        if let (Some(a), Some(b)) = (Dyadic2::of(self), Dyadic2::of(o)) {
+            let p = [
+                a.lo.times(&b.lo),
+                a.lo.times(&b.hi),
+                a.hi.times(&b.lo),
+                a.hi.times(&b.hi),
+            ];
+            let e = p.iter().map(|d| d.e).max().unwrap_or(0);
+            let at = |d: &Dyadic| &d.m << (e - d.e) as usize;
+            let lo = p.iter().map(at).min().unwrap_or_default();
+            let hi = p.iter().map(at).max().unwrap_or_default();
+            return Interval {
+                lo: Dyadic { m: lo, e }.to_rat(),
+                hi: Dyadic { m: hi, e }.to_rat(),
+            };
+        }
         let p = [
             &self.lo * &o.lo,
             &self.lo * &o.hi,
@@ -91,6 +123,27 @@ impl Interval {
     /// Keeps the sizes of numerators and denominators bounded in long interval computations
     /// while the result stays a rigorous enclosure (the error is at most 2^−bits per endpoint).
     pub fn rounded(&self, bits: u32) -> Interval {
+        if let Some(d) = Dyadic2::of(self) {
+            // Exact below 2^−bits; otherwise floor / ceil of m / 2^(e − bits).
+            let b = u64::from(bits);
+            let round = |x: &Dyadic, up: bool| {
+                if x.e <= b {
+                    x.to_rat()
+                } else {
+                    let q = BigInt::one() << (x.e - b) as usize;
+                    let m = if up {
+                        x.m.div_ceil(&q)
+                    } else {
+                        x.m.div_floor(&q)
+                    };
+                    Dyadic { m, e: b }.to_rat()
+                }
+            };
+            return Interval {
+                lo: round(&d.lo, false),
+                hi: round(&d.hi, true),
+            };
+        }
         let scale = BigInt::one() << bits as usize;
         let lo = (self.lo.numer() * &scale).div_floor(self.lo.denom());
         let hi = (self.hi.numer() * &scale).div_ceil(self.hi.denom());
@@ -102,6 +155,16 @@ impl Interval {
 
     /// Whether the width is at most `tol · max(|lo|, |hi|)` (or the interval is a point).
     pub fn relative_width_at_most(&self, tol: &Rat) -> bool {
+        if let Some(d) = Dyadic2::of(self) {
+            // width·q ≤ p·mag with tol = p/q, in integers over 2^e.
+            let e = d.lo.e.max(d.hi.e);
+            let (lo, hi) = (
+                &d.lo.m << (e - d.lo.e) as usize,
+                &d.hi.m << (e - d.hi.e) as usize,
+            );
+            let mag = lo.abs().max(hi.abs());
+            return (hi - lo) * tol.denom() <= mag * tol.numer();
+        }
         let mag = self.lo.abs().max(self.hi.abs());
         self.width() <= tol * mag
     }
@@ -115,5 +178,71 @@ impl Interval {
         let a = to_f64(&self.lo);
         let b = to_f64(&self.hi);
         (a.to_bits() == b.to_bits() || (a == 0.0 && b == 0.0)).then_some(a)
+    }
+}
+
+/// A dyadic rational m / 2^e.
+struct Dyadic {
+    m: BigInt,
+    e: u64,
+}
+
+impl Dyadic {
+    /// `v` as m / 2^e, if its (reduced, positive) denominator is a power of two.
+    fn of(v: &Rat) -> Option<Dyadic> {
+        let d = v.denom();
+        let e = d.trailing_zeros().unwrap_or(0);
+        (d.bits() == e + 1).then(|| Dyadic {
+            m: v.numer().clone(),
+            e,
+        })
+    }
+
+    fn neg(&self) -> Dyadic {
+        Dyadic {
+            m: -&self.m,
+            e: self.e,
+        }
+    }
+
+    fn times(&self, o: &Dyadic) -> Dyadic {
+        Dyadic {
+            m: &self.m * &o.m,
+            e: self.e + o.e,
+        }
+    }
+
+    /// The exact sum, as a reduced rational.
+    fn sum(a: &Dyadic, b: &Dyadic) -> Rat {
+        let e = a.e.max(b.e);
+        let m = (&a.m << (e - a.e) as usize) + (&b.m << (e - b.e) as usize);
+        Dyadic { m, e }.to_rat()
+    }
+
+    /// The reduced rational m / 2^e (what `Rat::new` would give, without a gcd).
+    fn to_rat(&self) -> Rat {
+        if self.m.is_zero() {
+            return Rat::zero();
+        }
+        let t = self.m.trailing_zeros().unwrap_or(0).min(self.e);
+        Rat::new_raw(
+            &self.m >> t as usize,
+            BigInt::one() << (self.e - t) as usize,
+        )
+    }
+}
+
+/// Both endpoints of an interval as dyadic rationals.
+struct Dyadic2 {
+    lo: Dyadic,
+    hi: Dyadic,
+}
+
+impl Dyadic2 {
+    fn of(iv: &Interval) -> Option<Dyadic2> {
+        Some(Dyadic2 {
+            lo: Dyadic::of(&iv.lo)?,
+            hi: Dyadic::of(&iv.hi)?,
+        })
     }
 }

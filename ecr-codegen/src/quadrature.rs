@@ -2,8 +2,10 @@
 //!
 //! Nodes are the roots of exact integer polynomials. They are isolated by exact sign
 //! evaluation on a dyadic grid (a degree-n polynomial with n sign changes has all its roots
-//! bracketed, one per bracket), then refined by bisection with exact signs to a bracket of
-//! width 2^−bits. Weights are enclosed by interval arithmetic over those brackets. Every
+//! bracketed, one per bracket; done once per polynomial and process), then narrowed to the
+//! dyadic bracket of width 2^−bits that holds the root: Newton's method in fixed point proposes
+//! it and exact signs at its ends confirm it (bisection with exact signs where they do not,
+//! which gives the same bracket, only slower). Weights are enclosed by interval arithmetic over those brackets. Every
 //! `f64` is read off an enclosure whose endpoints round alike, so it is the correctly
 //! rounded value of the true quantity.
 
@@ -166,23 +168,71 @@ fn dyadic(m: &BigInt, e: u32) -> Rat {
 /// Brackets of width ≤ 2^−bits around the `count` roots of p in (0, 1), increasing.
 ///
 /// The caller guarantees that p has exactly `count` simple roots in (0, 1) (true for Legendre
-/// polynomials and their derivatives). The grid is refined until `count` sign changes (or
-/// exact zeros) are seen; a degree-n polynomial cannot have more roots than that, so the
-/// brackets are a proof of isolation.
+/// polynomials and their derivatives); see [`isolate`] and [`newton_cell`].
 fn real_roots_in_unit(p: &Poly, count: usize, bits: u32) -> Vec<Interval> {
     if count == 0 {
         return Vec::new();
     }
     let a = integer_coefficients(p);
+    let iso = isolate(&a, count);
+    let g = iso.level;
+    let mut roots: Vec<Interval> = iso
+        .exact
+        .iter()
+        .map(|m| Interval::point(dyadic(m, g)))
+        .collect();
+    let da = derivative_coefficients(&a);
+    for (m, sign_lo) in &iso.brackets {
+        roots.push(
+            newton_cell(&a, &da, m, g, *sign_lo, bits)
+                .unwrap_or_else(|| bisect(&a, m.clone(), g, *sign_lo, bits)),
+        );
+    }
+    roots.sort_by(|x, y| x.lo.cmp(&y.lo));
+    roots
+}
+
+/// The roots of a polynomial in (0, 1) isolated on the dyadic grid of level `level`.
+#[derive(Clone)]
+struct Isolation {
+    level: u32,
+    /// (grid index of the left end, sign at the left end) per bracket.
+    brackets: Vec<(BigInt, Ordering)>,
+    /// Grid indices of exact zeros.
+    exact: Vec<BigInt>,
+}
+
+/// [`Isolation`] of the `count` roots of the integer polynomial `a` in (0, 1), computed once
+/// per polynomial and process: the grid scan is the same for every bisection depth and every
+/// table that uses the same rule (a table that needs a second, deeper attempt, or the tables
+/// of several r with the same s).
+fn isolate(a: &[BigInt], count: usize) -> Isolation {
+    use std::collections::HashMap;
+    use std::sync::{Mutex, OnceLock};
+    static CACHE: OnceLock<Mutex<HashMap<Vec<BigInt>, Isolation>>> = OnceLock::new();
+    let cache = CACHE.get_or_init(Default::default);
+    if let Some(iso) = cache.lock().ok().and_then(|c| c.get(a).cloned()) {
+        return iso;
+    }
+    let iso = isolate_on_grid(a, count);
+    if let Ok(mut c) = cache.lock() {
+        c.insert(a.to_vec(), iso.clone());
+    }
+    iso
+}
+
+/// The grid scan of [`isolate`]. The grid is refined until `count` sign changes (or exact
+/// zeros) are seen; a polynomial with exactly `count` roots in (0, 1) has no others, so the
+/// brackets are a proof of isolation.
+fn isolate_on_grid(a: &[BigInt], count: usize) -> Isolation {
     let mut g: u32 = 3 + 2 * count.next_power_of_two().trailing_zeros();
     loop {
-        // (grid index of the left end, sign at the left end) per bracket; exact zeros apart.
         let mut brackets: Vec<(BigInt, Ordering)> = Vec::new();
         let mut exact: Vec<BigInt> = Vec::new();
         let mut last: Option<(BigInt, Ordering)> = None;
         for i in 1..(1u64 << g) {
             let m = BigInt::from(i);
-            let sg = sign_at_dyadic(&a, &m, g);
+            let sg = sign_at_dyadic(a, &m, g);
             match sg {
                 Ordering::Equal => {
                     exact.push(m);
@@ -199,23 +249,104 @@ fn real_roots_in_unit(p: &Poly, count: usize, bits: u32) -> Vec<Interval> {
             }
         }
         // Roots in (0, 2^−g) or (1 − 2^−g, 1) are not bracketed by interior grid points; the
-        // count check below refines the grid until every root is.
+        // count check refines the grid until every root is.
         if brackets.len() + exact.len() == count {
-            let mut roots: Vec<Interval> = exact
-                .iter()
-                .map(|m| Interval::point(dyadic(m, g)))
-                .collect();
-            for (m, sign_lo) in brackets {
-                roots.push(bisect(&a, m, g, sign_lo, bits));
-            }
-            roots.sort_by(|x, y| x.lo.cmp(&y.lo));
-            return roots;
+            return Isolation {
+                level: g,
+                brackets,
+                exact,
+            };
         }
         g += 2;
         assert!(
             g <= 24,
             "root isolation failed: polynomial does not have {count} roots in (0,1)"
         );
+    }
+}
+
+/// The coefficients of p' from those of p (integers).
+fn derivative_coefficients(a: &[BigInt]) -> Vec<BigInt> {
+    a.iter()
+        .enumerate()
+        .skip(1)
+        .map(|(k, c)| c * BigInt::from(k))
+        .collect()
+}
+
+/// p(X / 2^prec) · 2^prec, approximately (Horner in fixed point, truncating).
+fn eval_fixed(a: &[BigInt], x: &BigInt, prec: usize) -> BigInt {
+    let mut v = BigInt::zero();
+    for c in a.iter().rev() {
+        v = ((v * x) >> prec) + (c << prec);
+    }
+    v
+}
+
+/// What [`bisect`] returns for the root isolated in [m/2^e, (m+1)/2^e], found by Newton's
+/// method instead (a few iterations in fixed point rather than `bits − e` exact signs), or
+/// `None` (the caller then bisects).
+///
+/// Newton only proposes: the result is the dyadic cell [M/2^bits, (M+1)/2^bits] inside the
+/// bracket at whose ends p has opposite signs, checked with exact signs, or the point M/2^bits
+/// where p is exactly zero. The bracket holds exactly one root, so that cell is the one
+/// bisection reaches (it halves down to the unique cell of width 2^−bits holding the root, or
+/// stops at the root where a midpoint hits it): the enclosures, and every value certified from
+/// them, are the same.
+fn newton_cell(
+    a: &[BigInt],
+    da: &[BigInt],
+    m: &BigInt,
+    e: u32,
+    sign_lo: Ordering,
+    bits: u32,
+) -> Option<Interval> {
+    if e >= bits {
+        return None;
+    }
+    // Fixed point with `prec` fractional bits, well below the target cell.
+    let prec = bits as usize + 32;
+    let unit = BigInt::one() << (prec - e as usize);
+    let (lo, hi) = (m * &unit, (m + BigInt::one()) * &unit);
+    let mut x = (&lo + &hi) >> 1usize;
+    let mut converged = false;
+    for _ in 0..64 {
+        let d = eval_fixed(da, &x, prec);
+        if d.is_zero() {
+            return None;
+        }
+        let step = (eval_fixed(a, &x, prec) << prec) / d;
+        x -= &step;
+        if x < lo || x > hi {
+            return None;
+        }
+        if step.magnitude().bits() <= 2 {
+            converged = true;
+            break;
+        }
+    }
+    if !converged {
+        return None;
+    }
+    let cell = x >> (prec - bits as usize);
+    let shift = (bits - e) as usize;
+    let (first, last) = (m << shift, ((m + BigInt::one()) << shift) - BigInt::one());
+    if cell < first || cell > last {
+        return None;
+    }
+    let next = &cell + BigInt::one();
+    let (s0, s1) = (
+        sign_at_dyadic(a, &cell, bits),
+        sign_at_dyadic(a, &next, bits),
+    );
+    match (s0, s1) {
+        (Ordering::Equal, _) if cell > first => Some(Interval::point(dyadic(&cell, bits))),
+        (_, Ordering::Equal) if cell < last => Some(Interval::point(dyadic(&next, bits))),
+        (Ordering::Equal, _) | (_, Ordering::Equal) => None,
+        (s0, s1) if s0 == sign_lo && s1 != s0 => {
+            Some(Interval::new(dyadic(&cell, bits), dyadic(&next, bits)))
+        }
+        _ => None,
     }
 }
 

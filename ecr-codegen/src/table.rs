@@ -200,6 +200,13 @@ impl MethodTable {
                     .collect()
             })
             .collect();
+        // The moment weights lose the most digits to cancellation (|w_kj| grows like 6^r):
+        // if they cannot be certified at this depth, stop before the rest is computed.
+        let w = w_iv
+            .iter()
+            .cloned()
+            .map(certify_all)
+            .collect::<Option<Vec<_>>>()?;
         let legendre: Vec<Poly> = (0..r).map(shifted_legendre).collect();
         let lw_iv: Vec<Vec<Interval>> = legendre
             .iter()
@@ -255,10 +262,7 @@ impl MethodTable {
             quadrature,
             nodes: certify_all(q.nodes.clone())?,
             weights: certify_all(q.weights.clone())?,
-            w: w_iv
-                .into_iter()
-                .map(certify_all)
-                .collect::<Option<Vec<_>>>()?,
+            w,
             lw: lw_iv
                 .into_iter()
                 .map(certify_all)

@@ -31,7 +31,9 @@ pub struct MethodArgs {
     pub runtime: Option<Path>,
 }
 
-fn parse_usize(lit: &LitInt, key: &str) -> syn::Result<usize> {
+/// The value of an integer literal for `key`, whose supported maximum is `max`. (A literal
+/// token is never negative; `base10_parse` fails only when it does not fit a usize.)
+fn parse_usize(lit: &LitInt, key: &str, max: usize) -> syn::Result<usize> {
     if !lit.suffix().is_empty() && lit.suffix() != "usize" {
         return Err(syn::Error::new(
             lit.span(),
@@ -41,9 +43,26 @@ fn parse_usize(lit: &LitInt, key: &str) -> syn::Result<usize> {
     lit.base10_parse::<usize>().map_err(|_| {
         syn::Error::new(
             lit.span(),
-            format!("`{key}` must be a non-negative integer"),
+            format!(
+                "{key} = {} is too large: the supported maximum is {max}",
+                lit.base10_digits()
+            ),
         )
     })
+}
+
+/// The identifier value of `key`, or an error on the token that stands there instead (consumed,
+/// so that the remaining keys still parse) saying what `key` expects.
+fn value_ident(input: ParseStream, key: &Ident, expects: &str) -> syn::Result<Ident> {
+    if input.peek(Ident) {
+        input.parse()
+    } else {
+        let tt: proc_macro2::TokenTree = input.parse()?;
+        Err(syn::Error::new(
+            tt.span(),
+            format!("`{key}` expects {expects}, found `{tt}`"),
+        ))
+    }
 }
 
 fn value_int(input: ParseStream, key: &Ident) -> syn::Result<LitInt> {
@@ -86,16 +105,37 @@ impl Parse for MethodArgs {
             }
             seen.push(k.clone());
             match k.as_str() {
-                "r" | "s" => match value_int(input, &key)
-                    .and_then(|lit| Ok((parse_usize(&lit, &k)?, lit.span())))
-                {
+                "r" | "s" => match value_int(input, &key).and_then(|lit| {
+                    let max = if k == "r" {
+                        ecr_codegen::MAX_R
+                    } else {
+                        ecr_codegen::MAX_S
+                    };
+                    Ok((parse_usize(&lit, &k, max)?, lit.span()))
+                }) {
                     Ok(v) if k == "r" => r = Some(v),
                     Ok(v) => s = Some(v),
                     Err(e) => push(e),
                 },
-                "name" => name = Some(input.parse()?),
+                "name" => match value_ident(
+                    input,
+                    &key,
+                    "an identifier (the name of the stepper type, e.g. `name = MyStepper`)",
+                ) {
+                    Ok(n) => name = Some(n),
+                    Err(e) => push(e),
+                },
                 "family" => {
-                    let f: Ident = input.parse()?;
+                    let f = match value_ident(input, &key, "one of `ec`, `tc` or `rknc`") {
+                        Ok(f) => f,
+                        Err(e) => {
+                            push(e);
+                            if !input.is_empty() {
+                                input.parse::<Token![,]>()?;
+                            }
+                            continue;
+                        }
+                    };
                     match f.to_string().as_str() {
                         "ec" => family = Some(Family::Ec),
                         "tc" => family = Some(Family::Tc),

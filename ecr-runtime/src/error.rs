@@ -45,13 +45,41 @@ pub enum Error {
     },
     /// A numerical failure (overflow, failed decomposition, ...), described in words.
     Numerical(String),
+    /// Dense output asked of a stepper that holds no completed step for its step size: no step
+    /// yet, the last step failed, or the step size changed since.
+    NoCompletedStep,
+    /// Values of a step overflowed to infinity or NaN while the stage iteration was not
+    /// diverging: the solution grows beyond the f64 range within the step, or the step size is
+    /// unstable for the problem. The string names the values.
+    Overflow(&'static str),
+    /// A step of an integration failed; where, and why (`source`).
+    AtStep {
+        /// The number of the failed step (1 for the first).
+        step: usize,
+        /// The time at which the failed step started.
+        t: f64,
+        /// Its step size.
+        h: f64,
+        /// What went wrong.
+        source: Box<Error>,
+    },
+}
+
+impl Error {
+    /// The error itself, or for [`Error::AtStep`] the error of the failed step.
+    pub fn root(&self) -> &Error {
+        match self {
+            Error::AtStep { source, .. } => source.root(),
+            e => e,
+        }
+    }
 }
 
 impl fmt::Display for Error {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Error::InvalidStepSize(h) => {
-                write!(f, "invalid step size h = {h}: it must be finite and > 0")
+                write!(f, "invalid step size h = {h:?}: it must be finite and > 0")
             }
             Error::NonFinite(what) => write!(f, "{what} contains NaN or infinity"),
             Error::DimensionMismatch {
@@ -74,14 +102,36 @@ impl fmt::Display for Error {
             } => write!(
                 f,
                 "stage equations did not converge: residual {residual:e} after {sweeps} sweeps \
-                 (tolerance {tolerance:e})"
+                 (tolerance {tolerance:e}); try a smaller h, more sweeps, or the Newton stage \
+                 solver"
             ),
             Error::Numerical(msg) => write!(f, "numerical failure: {msg}"),
+            Error::NoCompletedStep => write!(
+                f,
+                "no completed step to interpolate: dense output needs a successful step with \
+                 the current step size (there was none yet, the last step failed, or the step \
+                 size changed since)"
+            ),
+            Error::Overflow(what) => write!(
+                f,
+                "{what} overflowed to infinity or NaN: the solution grows beyond the f64 range \
+                 within the step, or the step size is unstable for the problem; try a smaller h"
+            ),
+            Error::AtStep { step, t, h, source } => {
+                write!(f, "step {step} from t = {t:?} (h = {h:?}) failed: {source}")
+            }
         }
     }
 }
 
-impl std::error::Error for Error {}
+impl std::error::Error for Error {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            Error::AtStep { source, .. } => Some(source.as_ref()),
+            _ => None,
+        }
+    }
+}
 
 /// Shorthand for `Result<T, ecr_runtime::Error>`.
 pub type Result<T> = std::result::Result<T, Error>;

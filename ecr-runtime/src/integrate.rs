@@ -108,16 +108,94 @@ impl Default for IntegrateOptions {
     }
 }
 
+/// How [`integrate`] divides [t0, t_end] into steps of size h: `full_steps` steps of h, then,
+/// if h does not reach t_end exactly, one shortened step of `last`.
+///
+/// Step n ends at t₀ + n·h (computed from n, not accumulated, so the times do not drift).
+/// t_end counts as reached by the full steps when t₀ + n·h is within [`StepPlan::TIME_ULPS`]
+/// units of round-off (ε·max(|t₀|, |t_end|)) of it; otherwise the last step is shortened to
+/// `t_end − (t₀ + n·h)`, so that the integration ends at t_end exactly for every h, also h >
+/// t_end − t₀. (h itself is never adjusted.)
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepPlan {
+    /// Steps of the full size h.
+    pub full_steps: usize,
+    /// The size of a final shortened step, if one is needed (0 < last < h).
+    pub last: Option<f64>,
+}
+
+impl StepPlan {
+    /// How many units of round-off ε·max(|t₀|, |t_end|) apart t₀ + n·h and t_end may be and
+    /// still count as the same time (the rounding of h, of n·h and of the sum).
+    pub const TIME_ULPS: f64 = 4.0;
+
+    /// The plan for [t0, t_end] with step h.
+    ///
+    /// # Errors
+    /// [`Error::InvalidInput`] if t0 or t_end is not finite or t_end < t0, or if the interval
+    /// needs more than 2⁵² steps (the step count would no longer be exact in f64);
+    /// [`Error::InvalidStepSize`] for h ≤ 0 or not finite.
+    pub fn new(t0: f64, t_end: f64, h: f64) -> Result<Self> {
+        if !t0.is_finite() || !t_end.is_finite() {
+            return Err(Error::InvalidInput(format!(
+                "t0 = {t0:?} and t_end = {t_end:?} must be finite"
+            )));
+        }
+        if t_end < t0 {
+            return Err(Error::InvalidInput(format!(
+                "t_end = {t_end:?} is before t0 = {t0:?}"
+            )));
+        }
+        if !(h.is_finite() && h > 0.0) {
+            return Err(Error::InvalidStepSize(h));
+        }
+        let span = t_end - t0;
+        let ratio = span / h;
+        if ratio > (1u64 << 52) as f64 {
+            return Err(Error::InvalidInput(format!(
+                "t_end − t0 = {span:?} needs more than 2^52 steps of h = {h:?}"
+            )));
+        }
+        let tol = Self::TIME_ULPS * f64::EPSILON * t0.abs().max(t_end.abs());
+        let at = |n: f64| t0 + n * h;
+        // The most full steps that end no later than t_end (up to round-off); the division
+        // may be off by one either way.
+        let mut n = ratio.floor();
+        while n > 0.0 && at(n) > t_end + tol {
+            n -= 1.0;
+        }
+        while at(n + 1.0) <= t_end + tol {
+            n += 1.0;
+        }
+        let rest = t_end - at(n);
+        let last = if n == 0.0 {
+            (span > 0.0).then_some(span)
+        } else {
+            (rest > tol).then_some(rest)
+        };
+        Ok(StepPlan {
+            full_steps: n as usize,
+            last,
+        })
+    }
+
+    /// The number of steps, the shortened one included.
+    pub fn steps(&self) -> usize {
+        self.full_steps + usize::from(self.last.is_some())
+    }
+}
+
 /// Integrates from (t0, y) to t_end with the stepper's step size h, in place (for a
 /// [`TcStepper`], y = (q, p)).
 ///
-/// Takes ⌈(t_end − t0)/h⌉ steps; if h does not divide the interval (to 1e−9 relative), the
-/// last step is shortened (its φ-bank is built once, then the original h restored). The
-/// observer receives (t, y, H(y)).
+/// The steps are those of [`StepPlan::new`]: full steps of h ending at t₀ + n·h, then, if
+/// h does not reach t_end, one step shortened to end at t_end exactly (its φ-bank is built
+/// once, then the original h restored). The report's `t_end` is the time reached, t_end itself
+/// (also when h > t_end − t0). The observer receives (t, y, H(y)).
 ///
 /// # Errors
-/// [`Error::InvalidInput`] if t0 or t_end is not finite or t_end < t0, and any step error
-/// (the state is left at the last successful step).
+/// As [`StepPlan::new`]; a step's error wrapped in [`Error::AtStep`] with the number of the
+/// step, the time it started at and its size (the state is left at the last successful step).
 pub fn integrate<I: Integrator>(
     stepper: &mut I,
     t0: f64,
@@ -126,23 +204,9 @@ pub fn integrate<I: Integrator>(
     options: IntegrateOptions,
     mut observer: impl FnMut(f64, &[f64], Option<f64>),
 ) -> Result<Report> {
-    if !t0.is_finite() || !t_end.is_finite() {
-        return Err(Error::InvalidInput(format!(
-            "t0 = {t0} and t_end = {t_end} must be finite"
-        )));
-    }
-    if t_end < t0 {
-        return Err(Error::InvalidInput(format!(
-            "t_end = {t_end} is before t0 = {t0}"
-        )));
-    }
     let h = stepper.step_size();
-    let span = t_end - t0;
-    let ratio = span / h;
-    let n_full = (ratio * (1.0 + 1e-9)).floor() as usize;
-    let rest = span - n_full as f64 * h;
-    let extra = rest > 1e-9 * h.max(span);
-    let steps = n_full + usize::from(extra);
+    let plan = StepPlan::new(t0, t_end, h)?;
+    let steps = plan.steps();
     let e0 = stepper.energy_of(y);
     let scale = e0.map(|e| e.abs().max(f64::MIN_POSITIVE));
     let mut report = Report {
@@ -160,15 +224,20 @@ pub fn integrate<I: Integrator>(
         observer(t0, y, e0);
     }
     for n in 1..=steps {
-        let last_short = extra && n == steps;
-        if last_short {
+        let last_short = plan.last.filter(|_| n == steps);
+        if let Some(rest) = last_short {
             stepper.set_step_size(rest)?;
         }
         let rep = stepper.step_state(y);
-        if last_short {
+        if last_short.is_some() {
             stepper.set_step_size(h)?;
         }
-        let rep = rep?;
+        let rep = rep.map_err(|e| Error::AtStep {
+            step: n,
+            t: t0 + (n - 1) as f64 * h,
+            h: last_short.unwrap_or(h),
+            source: Box::new(e),
+        })?;
         report.steps = n;
         report.g_evals += rep.g_evals;
         report.sweeps += rep.sweeps;

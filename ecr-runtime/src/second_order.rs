@@ -356,11 +356,17 @@ impl<S: SecondOrderSystem, K: Kernel> TcStepper<S, K> {
     /// A stepper from a kernel (run-time or emitted by `ecr_method!`).
     ///
     /// # Errors
-    /// [`Error::InvalidParameter`] for bad settings, [`Error::InvalidStepSize`] for h.
+    /// [`Error::InvalidParameter`] for bad settings, [`Error::InvalidStepSize`] for h,
+    /// [`Error::InvalidInput`] for Ω of dimension 0.
     pub fn from_kernel(kernel: K, system: S, h: f64, settings: SolverSettings) -> Result<Self> {
         settings.validate()?;
         settings.require_fixed_point("TcStepper")?;
         let (r, s, d) = (kernel.r(), kernel.s(), system.omega().dim());
+        if d == 0 {
+            return Err(Error::InvalidInput(
+                "the system has dimension 0 (Ω is 0 × 0): there is nothing to integrate".into(),
+            ));
+        }
         let (bank, coef) = Self::build(&system, &kernel, h, settings.predictor)?;
         Ok(TcStepper {
             kernel,
@@ -563,9 +569,7 @@ impl<S: SecondOrderSystem, K: Kernel> TcStepper<S, K> {
             }
             g_evals += s;
             if !residual.is_finite() {
-                return Err(Error::NonFinite(
-                    "stage values (the fixed-point iteration diverged)",
-                ));
+                return Err(crate::stepper::stages_fault(previous));
             }
             if sweeps_converged(residual, previous, self.settings.tolerance) {
                 break (residual, true);

@@ -157,7 +157,7 @@ fn check_parameter(m: f64) -> Result<()> {
     }
     if !(0.0..=1.0).contains(&m) {
         return Err(Error::InvalidParameter(format!(
-            "elliptic parameter m = {m} must lie in [0, 1] (m = k², k the modulus)"
+            "elliptic parameter m = {m:?} must lie in [0, 1] (m = k², k the modulus)"
         )));
     }
     Ok(())

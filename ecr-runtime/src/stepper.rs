@@ -80,7 +80,37 @@ pub fn sweeps_converged(residual: f64, previous: f64, tolerance: f64) -> bool {
 }
 
 /// The [`Error::NonFinite`] of a diverging stage iteration.
-const DIVERGED: &str = "stage values (the stage iteration diverged)";
+const DIVERGED: &str = "stage values (the stage iteration diverged: try a smaller h, or \
+                        StageSolver::Newton for a stiff g)";
+
+/// The [`Error::Overflow`] of stage values that overflowed at the first sweep, or while the
+/// iteration was contracting.
+const STAGES_OVERFLOWED: &str = "stage values";
+
+/// The [`Error::Overflow`] of y₁ from finite stages.
+const Y1_OVERFLOWED: &str = "the new state y₁";
+
+/// The error of stages that became non-finite at a sweep whose previous scaled update was
+/// `previous` (∞ at the first sweep), with g at the previous iterate: g's fault if g is not
+/// finite ([`g_fault`]); divergence if the iteration was already moving the stages by half
+/// their size or more; otherwise the stage values themselves overflowed (at the first sweep
+/// the stages are e^{cᵢhA} y₀ plus the exponential Euler update: the solution, not the
+/// iteration, leaves the f64 range).
+#[cold]
+fn stage_fault(g: &[f64], previous: f64) -> Error {
+    g_fault(g, previous).map_or_else(|| stages_fault(previous), Error::NonFinite)
+}
+
+/// The error of stage values that became non-finite with g finite (see [`stage_fault`]);
+/// shared by every fixed-point stepper.
+#[cold]
+pub(crate) fn stages_fault(previous: f64) -> Error {
+    if previous.is_finite() && previous >= 0.5 {
+        Error::NonFinite(DIVERGED)
+    } else {
+        Error::Overflow(STAGES_OVERFLOWED)
+    }
+}
 
 /// The [`Error::NonFinite`] of g at a stage.
 const G_NONFINITE: &str = "g(Y) at a stage";
@@ -221,7 +251,8 @@ impl SolverSettings {
             Ok(())
         } else {
             Err(Error::InvalidParameter(format!(
-                "{stepper} solves its stages by fixed-point sweeps only (StageSolver::Newton is                  implemented for the ECrP stepper)"
+                "{stepper} solves its stages by fixed-point sweeps only (StageSolver::Newton is \
+                 implemented for the ECrP stepper)"
             )))
         }
     }
@@ -705,10 +736,11 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
     ///
     /// # Errors
     /// [`Error::InvalidParameter`] for bad settings, [`Error::InvalidStepSize`] for h,
-    /// [`Error::DimensionMismatch`] if fixed-size buffers do not fit the system, and whatever
-    /// building the φ-bank reports.
+    /// [`Error::DimensionMismatch`] if fixed-size buffers do not fit the system, the errors of
+    /// [`check_system`](crate::system::check_system), and whatever building the φ-bank reports.
     pub fn from_kernel(kernel: K, system: S, h: f64, settings: SolverSettings) -> Result<Self> {
         check_settings(&settings)?;
+        crate::system::check_system(&system)?;
         let buf = B::with_sizes(kernel.r(), kernel.s(), system.dim())?;
         let (bank, coef, fused, ws) = Self::build_bank(&system, &kernel, h, settings.predictor)?;
         Ok(Stepper {
@@ -825,8 +857,10 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
     ///
     /// # Errors
     /// [`Error::DimensionMismatch`] for a wrong length, [`Error::NonFinite`] if y or g(Y) is
-    /// NaN/infinite, [`Error::NoConvergence`] if the sweeps do not converge and
-    /// [`SweepLimit::Error`] is set. On error, y is unchanged.
+    /// NaN/infinite or the iteration diverges, [`Error::Overflow`] if the stage values or y₁
+    /// overflow while the iteration is not diverging (the solution leaves the f64 range within
+    /// the step, or h is unstable for it), [`Error::NoConvergence`] if the sweeps do not
+    /// converge and [`SweepLimit::Error`] is set. On error, y is unchanged.
     pub fn step(&mut self, y: &mut [f64]) -> Result<StepReport> {
         let d = self.buf.dim();
         let (s, m) = (self.kernel.s(), self.kernel.r());
@@ -1040,7 +1074,7 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                 stages.copy_from_slice(new_stages);
                 sweeps += 1;
                 if !residual.is_finite() {
-                    return Err(Error::NonFinite(g_fault(g, previous).unwrap_or(DIVERGED)));
+                    return Err(stage_fault(g, previous));
                 }
                 eval_all(stages, g, scratch, unchanged)?;
                 g_evals += s - usize::from(unchanged.is_some());
@@ -1091,9 +1125,9 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                 y.copy_from_slice(y0);
                 // g is not checked per sweep: a non-finite g makes the next stages non-finite
                 // (caught by the residual) or, at the last sweep, y₁.
-                return Err(Error::NonFinite(
-                    g_fault(g, residual).unwrap_or("new state y₁"),
-                ));
+                return Err(
+                    g_fault(g, residual).map_or(Error::Overflow(Y1_OVERFLOWED), Error::NonFinite)
+                );
             }
             last.copy_from_slice(y);
             *have_previous = true;
@@ -1112,11 +1146,16 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
     /// for output, not in a hot loop.
     ///
     /// # Errors
+    /// [`Error::NoCompletedStep`] before the first step, after a failed step and after
+    /// [`set_step_size`](Self::set_step_size) (the buffers then hold no step of this h),
     /// [`Error::InvalidInput`] for τ outside [0, 1], and whatever building the bank reports.
     pub fn dense_output(&self, tau: f64) -> Result<Vec<f64>> {
+        if !self.have_previous {
+            return Err(Error::NoCompletedStep);
+        }
         if !(0.0..=1.0).contains(&tau) {
             return Err(Error::InvalidInput(format!(
-                "dense output needs 0 <= tau <= 1, got {tau}"
+                "dense output needs 0 <= tau <= 1, got {tau:?}"
             )));
         }
         let y0 = self.buf.y0();

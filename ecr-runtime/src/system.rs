@@ -39,6 +39,30 @@ pub trait System {
     }
 }
 
+/// Checks what every stepper needs of a system before it allocates for it: a dimension d ≥ 1
+/// that agrees with its linear operator's. Called by every constructor that takes a
+/// [`System`], so that a system whose `dim()` is wrong fails there, not at the first step.
+///
+/// # Errors
+/// [`Error::DimensionMismatch`] if `system.dim()` differs from `system.linear().dim()`,
+/// [`Error::InvalidInput`] if the dimension is 0.
+pub fn check_system<S: System + ?Sized>(system: &S) -> Result<()> {
+    let (d, op) = (system.dim(), system.linear().dim());
+    if d != op {
+        return Err(Error::DimensionMismatch {
+            what: "system: dim() vs its linear operator's dim()",
+            expected: op,
+            found: d,
+        });
+    }
+    if d == 0 {
+        return Err(Error::InvalidInput(
+            "the system has dimension 0: there is nothing to integrate".into(),
+        ));
+    }
+    Ok(())
+}
+
 impl<S: System + ?Sized> System for &S {
     type Op = S::Op;
     fn dim(&self) -> usize {

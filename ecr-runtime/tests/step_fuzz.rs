@@ -91,6 +91,7 @@ fn expected(e: &Error) -> bool {
             | Error::NonFinite(_)
             | Error::NoConvergence { .. }
             | Error::Numerical(_)
+            | Error::Overflow(_)
     )
 }
 

@@ -68,7 +68,8 @@ pub type Hbvm<S> = Stepper<RuntimeKernel, WholeField<S>, VecBuffers>;
 /// HBVM(k, s): polynomial degree s, k ≥ s quadrature points of the given kind.
 ///
 /// # Errors
-/// [`Error::InvalidParameter`] for s = 0, k < s (Lobatto: k ≥ 2), and the stepper's errors.
+/// [`Error::InvalidParameter`] for s = 0, k < s (Lobatto: k ≥ 2), the errors of
+/// [`check_system`](crate::system::check_system) for `system`, and the stepper's errors.
 pub fn hbvm<S: System>(
     system: S,
     k: usize,
@@ -78,6 +79,7 @@ pub fn hbvm<S: System>(
     settings: SolverSettings,
 ) -> Result<Hbvm<S>> {
     let kernel = RuntimeKernel::with_quadrature(kind, s, k)?;
+    crate::system::check_system(&system)?;
     Stepper::from_kernel(kernel, WholeField::new(system), h, settings)
 }
 
@@ -137,10 +139,12 @@ impl<S: System> ExpAvf<S> {
     /// The method with a k-point Gauss rule and step size h.
     ///
     /// # Errors
-    /// [`Error::InvalidParameter`] for k = 0 or bad settings, [`Error::InvalidStepSize`].
+    /// [`Error::InvalidParameter`] for k = 0 or bad settings, [`Error::InvalidStepSize`], and
+    /// the errors of [`check_system`](crate::system::check_system).
     pub fn new(system: S, k: usize, h: f64, settings: SolverSettings) -> Result<Self> {
         settings.validate()?;
         settings.require_fixed_point("ExpAvf")?;
+        crate::system::check_system(&system)?;
         let c = coefficients(1, k)?;
         let d = system.dim();
         let bank = system.linear().phi_bank(h, &[1.0], 1)?;
@@ -216,7 +220,7 @@ impl<S: System> ExpAvf<S> {
             sweeps += 1;
             let residual = diff / mag;
             if !residual.is_finite() {
-                return Err(Error::NonFinite("the fixed-point iteration diverged"));
+                return Err(crate::stepper::stages_fault(previous));
             }
             if sweeps_converged(residual, previous, self.settings.tolerance) {
                 break (residual, true);

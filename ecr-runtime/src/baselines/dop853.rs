@@ -172,7 +172,8 @@ impl<S: System> Dop853<S> {
     /// `atol + rtol·|y_i|`, as in Hairer's code).
     ///
     /// # Errors
-    /// [`Error::InvalidParameter`] unless rtol and atol are finite and positive.
+    /// [`Error::InvalidParameter`] unless rtol and atol are finite and positive; the errors of
+    /// [`check_system`](crate::system::check_system).
     pub fn new(system: S, rtol: f64, atol: f64) -> Result<Self> {
         for (name, tol) in [("rtol", rtol), ("atol", atol)] {
             if !(tol.is_finite() && tol > 0.0) {
@@ -181,6 +182,7 @@ impl<S: System> Dop853<S> {
                 )));
             }
         }
+        crate::system::check_system(&system)?;
         Ok(Dop853 {
             system,
             rtol,

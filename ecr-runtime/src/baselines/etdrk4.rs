@@ -60,9 +60,11 @@ impl<S: System> Etdrk4<S> {
     /// ETDRK4 for `system` with step size `h`.
     ///
     /// # Errors
-    /// [`Error::InvalidStepSize`] and whatever the operator's `phi_bank` reports.
+    /// [`Error::InvalidStepSize`], the errors of [`check_system`](crate::system::check_system)
+    /// and whatever the operator's `phi_bank` reports.
     pub fn new(system: S, h: f64) -> Result<Self> {
         check_step_size(h)?;
+        crate::system::check_system(&system)?;
         let bank = system.linear().phi_bank(h, &[0.5, 1.0], 3)?;
         let ws = bank.workspace();
         let d = system.dim();

@@ -171,7 +171,8 @@ impl<S: System> Exprb43<S> {
     /// and rounding errors both O(ε^{2/3})), 2d extra evaluations of g per step.
     ///
     /// # Errors
-    /// [`Error::InvalidStepSize`], [`Error::NonFinite`] if A has non-finite entries.
+    /// [`Error::InvalidStepSize`], [`Error::NonFinite`] if A has non-finite entries, the errors
+    /// of [`check_system`](crate::system::check_system).
     pub fn new(system: S, h: f64) -> Result<Self> {
         Self::build(system, h, JacobianSource::FiniteDifference)
     }
@@ -200,6 +201,7 @@ impl<S: System, J: Fn(&[f64], &mut DMatrix<f64>)> Exprb43<S, J> {
 
     fn build(system: S, h: f64, source: JacobianSource<J>) -> Result<Self> {
         check_h(h)?;
+        crate::system::check_system(&system)?;
         let a = dense_linear(&system)?;
         let d = a.nrows();
         let z = || DMatrix::zeros(d, d);
@@ -579,10 +581,12 @@ impl<S: System> HochOst4<S> {
     /// The method for `system` with step size `h`.
     ///
     /// # Errors
-    /// [`Error::InvalidStepSize`], [`Error::NonFinite`] if A has non-finite entries, and
-    /// whatever [`phi_dense`] reports for hA.
+    /// [`Error::InvalidStepSize`], [`Error::NonFinite`] if A has non-finite entries, the errors
+    /// of [`check_system`](crate::system::check_system), and whatever [`phi_dense`] reports for
+    /// hA.
     pub fn new(system: S, h: f64) -> Result<Self> {
         check_h(h)?;
+        crate::system::check_system(&system)?;
         let a = dense_linear(&system)?;
         let d = a.nrows();
         let c = HochOst4Coefficients::new(&a, h)?;

@@ -223,11 +223,12 @@ impl<S: System> Exprb43Krylov<S> {
     /// The method with step size h (Krylov tolerance 1e−13 relative, at most 40 vectors).
     ///
     /// # Errors
-    /// [`Error::InvalidStepSize`].
+    /// [`Error::InvalidStepSize`], the errors of [`check_system`](crate::system::check_system).
     pub fn new(system: S, h: f64) -> Result<Self> {
         if !(h.is_finite() && h > 0.0) {
             return Err(Error::InvalidStepSize(h));
         }
+        crate::system::check_system(&system)?;
         let d = system.dim();
         let v = || vec![0.0; d];
         Ok(Exprb43Krylov {

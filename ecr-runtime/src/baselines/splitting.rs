@@ -210,6 +210,7 @@ impl<S: System> LinearFlowSplitting<S> {
     pub fn new(system: S, order: usize, h: f64) -> Result<Self> {
         let gammas = composition(order)?;
         check_step_size(h)?;
+        crate::system::check_system(&system)?;
         let (taus, node) = distinct(gammas);
         let bank = system.linear().phi_bank(h, &taus, 0)?;
         let ws = bank.workspace();

@@ -9,7 +9,7 @@ use num_complex::Complex64;
 use super::simple::diagonal_block;
 use super::skew::{SkewGenerator, SpectralBasis};
 use super::{
-    LinearOperator, NodeFunctions, PhiBank, apply_shape, check_bank_args, check_bank_values,
+    LinearOperator, NodeFunctions, PhiBank, apply_shape, check_bank_scale, check_bank_values,
     combine_shape,
 };
 use crate::phi::{check_symmetric, symmetric_eigen, two_prod, two_sum, validate_matrix};
@@ -149,7 +149,7 @@ impl LinearOperator for Dense {
 
 impl Dense {
     fn bank(&self, h: f64, taus: &[f64], p: usize, f: NodeFunctions) -> Result<DenseBank> {
-        check_bank_args(h, taus)?;
+        check_bank_scale(h, taus, self.a.amax())?;
         let mut phis = Vec::with_capacity(taus.len() * (p + 1));
         let mut lo = Vec::with_capacity(taus.len());
         for (i, tau) in taus.iter().enumerate() {
@@ -315,7 +315,7 @@ impl<const D: usize> LinearOperator for DenseStatic<D> {
 
 impl<const D: usize> DenseStatic<D> {
     fn bank(&self, h: f64, taus: &[f64], p: usize, f: NodeFunctions) -> Result<DenseStaticBank<D>> {
-        check_bank_args(h, taus)?;
+        check_bank_scale(h, taus, self.a.amax())?;
         let mut phis = Vec::with_capacity(taus.len() * (p + 1));
         let mut lo = Vec::with_capacity(taus.len());
         let to_static = |m: &DMatrix<f64>| SMatrix::<f64, D, D>::from_column_slice(m.as_slice());
@@ -493,7 +493,7 @@ impl LinearOperator for Symmetric {
 
 impl Symmetric {
     fn bank(&self, h: f64, taus: &[f64], p: usize, f: NodeFunctions) -> Result<SymmetricBank> {
-        check_bank_args(h, taus)?;
+        check_bank_scale(h, taus, self.a.amax())?;
         let d = self.lambda.len();
         let mut phis = vec![0.0; taus.len() * (p + 1) * d];
         let mut buf = vec![0.0; p + 1];

@@ -278,6 +278,22 @@ pub(crate) fn check_bank_args(h: f64, taus: &[f64]) -> Result<()> {
     Ok(())
 }
 
+/// Validates [`check_bank_args`] and that τ·h·A stays in the f64 range for an operator whose
+/// largest entry (or eigenvalue) in magnitude is `amax`: otherwise an overflow there would be
+/// reported later as a non-finite matrix, without naming its cause (a step size far too large
+/// for the operator).
+pub(crate) fn check_bank_scale(h: f64, taus: &[f64], amax: f64) -> Result<()> {
+    check_bank_args(h, taus)?;
+    let tmax = taus.iter().fold(0.0_f64, |m, t| m.max(t.abs()));
+    if !(tmax * h * amax).is_finite() {
+        return Err(Error::InvalidInput(format!(
+            "the step size h = {h:?} is too large for the linear part A (max |entry| {amax:?}): \
+             τ·h·A overflows the f64 range"
+        )));
+    }
+    Ok(())
+}
+
 /// `Err(Numerical)` if a bank entry overflowed.
 pub(crate) fn check_bank_values(values: impl IntoIterator<Item = f64>) -> Result<()> {
     if values.into_iter().all(f64::is_finite) {

@@ -5,8 +5,8 @@ use std::ops::Range;
 use nalgebra::DVector;
 
 use super::{
-    LinearOperator, NodeFunctions, PhiBank, apply_shape, check_bank_args, check_bank_values,
-    combine_shape,
+    LinearOperator, NodeFunctions, PhiBank, apply_shape, check_bank_args, check_bank_scale,
+    check_bank_values, combine_shape,
 };
 use crate::{Error, Result};
 
@@ -182,7 +182,7 @@ impl LinearOperator for Scalar {
 
 impl Scalar {
     fn bank(&self, h: f64, taus: &[f64], p: usize, f: NodeFunctions) -> Result<ScalarBank> {
-        check_bank_args(h, taus)?;
+        check_bank_scale(h, taus, self.a.abs())?;
         let mut phis = vec![0.0; taus.len() * (p + 1)];
         for (i, (tau, row)) in taus.iter().zip(phis.chunks_exact_mut(p + 1)).enumerate() {
             f.real(i, tau * h * self.a, row);
@@ -316,7 +316,11 @@ impl LinearOperator for Diagonal {
 
 impl Diagonal {
     fn bank(&self, h: f64, taus: &[f64], p: usize, f: NodeFunctions) -> Result<DiagonalBank> {
-        check_bank_args(h, taus)?;
+        check_bank_scale(
+            h,
+            taus,
+            self.diag.iter().fold(0.0_f64, |m, x| m.max(x.abs())),
+        )?;
         let d = self.diag.len();
         let mut phis = vec![0.0; taus.len() * (p + 1) * d];
         let mut buf = vec![0.0; p + 1];

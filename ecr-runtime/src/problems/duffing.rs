@@ -50,13 +50,18 @@ impl Duffing {
         }
         if omega <= 0.0 {
             return Err(Error::InvalidParameter(format!(
-                "Duffing frequency ω = {omega} must be > 0"
+                "Duffing frequency ω = {omega:?} must be > 0"
             )));
         }
         if k.abs() > omega {
             return Err(Error::InvalidParameter(format!(
-                "Duffing parameter |k| = {} must not exceed ω = {omega} (modulus k/ω ≤ 1)",
+                "Duffing parameter |k| = {:?} must not exceed ω = {omega:?} (modulus k/ω ≤ 1)",
                 k.abs()
+            )));
+        }
+        if !(omega * omega + k * k).is_finite() {
+            return Err(Error::InvalidParameter(format!(
+                "Duffing frequency ω = {omega:?} is too large: the stiffness ω² + k² overflows f64"
             )));
         }
         let jacobi = JacobiElliptic::new((k / omega).powi(2))?;

@@ -77,7 +77,12 @@ impl Fpu {
         }
         if omega < 0.0 {
             return Err(Error::InvalidParameter(format!(
-                "FPU frequency ω = {omega} must be ≥ 0"
+                "FPU frequency ω = {omega:?} must be ≥ 0"
+            )));
+        }
+        if !(omega * omega).is_finite() {
+            return Err(Error::InvalidParameter(format!(
+                "FPU frequency ω = {omega:?} is too large: ω² overflows f64"
             )));
         }
         Ok(Fpu { m, omega })

@@ -60,7 +60,7 @@ impl Wind {
         }
         if !(0.0..=FRAC_PI_2).contains(&theta) {
             return Err(Error::InvalidParameter(format!(
-                "wind angle θ = {theta} must lie in [0, π/2]"
+                "wind angle θ = {theta:?} must lie in [0, π/2]"
             )));
         }
         let (sin_theta, cos_theta) = if theta == FRAC_PI_2 {
@@ -84,7 +84,7 @@ impl Wind {
         }
         if !(0.0..=FRAC_PI_2).contains(&delta) {
             return Err(Error::InvalidParameter(format!(
-                "wind angle deviation δ = π/2 − θ = {delta} must lie in [0, π/2]"
+                "wind angle deviation δ = π/2 − θ = {delta:?} must lie in [0, π/2]"
             )));
         }
         let (cos_theta, sin_theta) = delta.sin_cos();
@@ -97,7 +97,7 @@ impl Wind {
         }
         if radius < 0.0 {
             return Err(Error::InvalidParameter(format!(
-                "wind radius r = {radius} must be ≥ 0"
+                "wind radius r = {radius:?} must be ≥ 0"
             )));
         }
         Ok(Wind {

@@ -2,7 +2,7 @@
 //! Lyapunov-function study, each over every registered method.
 
 use super::methods::{Dyn, Method, PRIMARY, Problem, ec};
-use ecr_runtime::integrate::{IntegrateOptions, Report, integrate};
+use ecr_runtime::integrate::{IntegrateOptions, Report, StepPlan, integrate};
 use ecr_runtime::problems::{Duffing, Nls, Wind};
 use ecr_runtime::stepper::SolverSettings;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -79,12 +79,10 @@ fn halvings(range: std::ops::RangeInclusive<i32>) -> Vec<f64> {
     range.map(|i| 0.1 / 2f64.powi(i)).collect()
 }
 
-/// Number of steps `integrate` takes for [0, t] with step h.
+/// Number of steps `integrate` takes for [0, t] with step h ([`StepPlan`]; 0 for an interval
+/// it refuses).
 fn steps_for(t: f64, h: f64) -> u64 {
-    let ratio = t / h;
-    let n = (ratio * (1.0 + 1e-9)).floor();
-    let extra = t - n * h > 1e-9 * h.max(t);
-    n as u64 + u64::from(extra)
+    StepPlan::new(0.0, t, h).map_or(0, |p| p.steps() as u64)
 }
 
 /// How the reference solution of an error study is computed.
