@@ -339,3 +339,57 @@ fn help_mentions_exit_status() {
     assert!(out.contains("status 2"), "{out}");
     assert!(out.contains("--paper-solver"));
 }
+
+/// Sizes are checked before anything is allocated: an NLS grid or a Newton matrix that does
+/// not fit in memory is one line and exit status 2 (they used to abort: "memory allocation of
+/// 17179869184 bytes failed", SIGABRT). Every case runs under `ulimit -v` 8 GiB, so that a
+/// regression aborts instead of taking the machine's memory; --n 16777216 (about 11 GB) might
+/// fit in a large machine's memory but not in the 8 GiB, and the message names the limit
+/// (MemAvailable where the machine has less).
+#[test]
+fn nls_memory_is_checked_before_allocating() {
+    const LIMIT_KIB: u64 = 8 * 1024 * 1024;
+    let nls = |n: &'static str, extra: &[&'static str]| {
+        let mut args = vec![
+            "run",
+            "--problem",
+            "nls",
+            "--n",
+            n,
+            "--r",
+            "2",
+            "--h",
+            "0.01",
+            "--t-end",
+            "0.01",
+        ];
+        args.extend_from_slice(extra);
+        args
+    };
+    for (args, limit) in [
+        (nls("2147483648", &[]), ""),
+        (nls("18446744073709551614", &[]), ""),
+        (nls("65536", &["--newton"]), ""),
+        (nls("16777216", &[]), "ulimit -v"),
+    ] {
+        let (code, out, err) = common::ecr_with_address_space(LIMIT_KIB, &args);
+        assert_eq!(code, 2, "{args:?}: stdout {out} stderr {err}");
+        assert!(out.is_empty(), "{args:?}: stdout {out}");
+        assert!(
+            err.starts_with("error: --problem nls --n"),
+            "{args:?}: {err}"
+        );
+        assert!(
+            err.contains("needs about") && err.contains("of memory"),
+            "{args:?}: {err}"
+        );
+        assert!(
+            err.contains(limit) || err.contains("MemAvailable"),
+            "{args:?}: {err}"
+        );
+        assert_eq!(err.lines().count(), 1, "{args:?}: {err}");
+    }
+    // A grid that fits runs under the same limit.
+    let (code, _, err) = common::ecr_with_address_space(LIMIT_KIB, &nls("4096", &[]));
+    assert_eq!(code, 0, "{err}");
+}

@@ -3,6 +3,7 @@
 mod bench;
 #[cfg(test)]
 mod fuzz;
+mod memory;
 mod reproduce;
 mod run;
 mod tables;

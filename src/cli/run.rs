@@ -1,6 +1,6 @@
 //! `ecr run`: integrate one of the paper's test problems and report the run as JSON.
 
-use super::UsageError;
+use super::{UsageError, memory};
 use clap::{Args, ValueEnum};
 use ecr_runtime::integrate::{IntegrateOptions, Integrator, Report, integrate};
 use ecr_runtime::problems::{Duffing, Fpu, Nls, Wind};
@@ -86,7 +86,8 @@ pub struct RunArgs {
     /// Wind radius r (the paper's "r = 20") [default: 20].
     #[arg(long, allow_negative_numbers = true)]
     amplitude: Option<f64>,
-    /// NLS grid size N (even) [default: 128].
+    /// NLS grid size N (even) [default: 128]. A run whose memory, estimated from N, r, s and
+    /// --newton, exceeds 3/4 of the memory available (MemAvailable, ulimit -v) is refused.
     #[arg(long)]
     n: Option<usize>,
     /// Method family: ec (any problem; fpu in first-order form), tc or rknc (fpu).
@@ -260,9 +261,51 @@ fn solver_settings(args: &RunArgs) -> SolverSettings {
     settings
 }
 
+/// A bound on the bytes (address space) `ecr run` needs. Per component of the state
+/// (dimension d): the stepper's buffers (4s + r + 6 vectors), the φ-bank (τ nodes × (r + 1)
+/// functions, a complex number per Fourier mode, d/2 modes) and 320 bytes for the rest: the
+/// FFT plans, eigenvalues and scratch, y, and later the JSON report (measured, as the smallest
+/// `ulimit -v` a run passes, for the NLS with N = 2²⁰: 135 bytes for N a power of two, 250 for
+/// N = 2p with p prime, which rustfft transforms by Rader's or Bluestein's algorithm). With
+/// --newton, the Newton matrices (2s²d² + 2d² numbers). r and s are clamped to the tables'
+/// range: larger ones are refused later with their own message.
+fn memory_estimate(args: &RunArgs) -> f64 {
+    const BASE: f64 = 32.0 * 1024.0 * 1024.0;
+    let d = match args.problem {
+        ProblemArg::Nls => 2.0 * args.n.unwrap_or(128) as f64,
+        // Duffing and wind: 2; FPU (m = 3) in first-order form: 12.
+        _ => 16.0,
+    };
+    let r = args.r.min(ecr_codegen::MAX_R) as f64;
+    let s = args.s.unwrap_or(args.r).min(ecr_codegen::MAX_S) as f64;
+    let taus = if args.extrapolate {
+        2.0 * s + 1.0
+    } else {
+        s + 1.0
+    };
+    let per_component = 8.0 * (4.0 * s + r + 6.0) + 8.0 * taus * (r + 1.0) + 320.0;
+    let newton = if args.newton {
+        16.0 * (s * s + 1.0) * d * d
+    } else {
+        0.0
+    };
+    BASE + d * per_component + newton
+}
+
 /// Runs `ecr run`.
 pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), UsageError> {
     check_inputs(args)?;
+    let what = match (args.problem, args.n) {
+        (ProblemArg::Nls, Some(n)) => format!("--problem nls --n {n}"),
+        _ => format!("--problem {}", args.problem.name()),
+    };
+    let what = format!(
+        "{what} with r = {}, s = {}{}",
+        args.r,
+        args.s.unwrap_or(args.r),
+        if args.newton { " and --newton" } else { "" }
+    );
+    memory::check(&what, memory_estimate(args))?;
     let settings = solver_settings(args);
     let s = args.s.unwrap_or(args.r);
     let (outcome, parameters, global_error) = match args.problem {

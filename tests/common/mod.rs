@@ -34,3 +34,20 @@ impl Drop for TempDir {
         let _ = std::fs::remove_dir_all(&self.0);
     }
 }
+
+/// Runs the `ecr` binary with `args` under `ulimit -v kib` (address space, KiB): (exit status,
+/// stdout, stderr); status -1 if it died by a signal (e.g. an abort on a failed allocation).
+pub fn ecr_with_address_space(kib: u64, args: &[&str]) -> (i32, String, String) {
+    let out = Command::new("sh")
+        .arg("-c")
+        .arg(format!("ulimit -v {kib} && exec \"$0\" \"$@\""))
+        .arg(env!("CARGO_BIN_EXE_ecr"))
+        .args(args)
+        .output()
+        .expect("run sh");
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8(out.stdout).unwrap(),
+        String::from_utf8(out.stderr).unwrap(),
+    )
+}

@@ -9,6 +9,7 @@ use num_complex::Complex64;
 use rustfft::{Fft, FftPlanner};
 
 use super::{check_len, forward_test_problem};
+use crate::storage::ensure_allocatable;
 use crate::{Error, Result};
 
 /// Problem 3 of the paper (§9): the cubic nonlinear Schrödinger equation
@@ -105,13 +106,15 @@ impl Nls {
     /// # Errors
     ///
     /// [`Error::InvalidParameter`] if `n` is odd or zero (the paper's `D₂` formula is the
-    /// even-`N` pseudospectral matrix).
+    /// even-`N` pseudospectral matrix), [`Error::InvalidInput`] if its `N` numbers cannot be
+    /// allocated.
     pub fn new(n: usize) -> Result<Self> {
         if n == 0 || n % 2 != 0 {
             return Err(Error::InvalidParameter(format!(
                 "NLS grid size N = {n} must be even and positive"
             )));
         }
+        ensure_allocatable(&format!("the NLS grid of N = {n} points"), Some(n))?;
         let mu2 = Self::MU * Self::MU;
         let half = n / 2;
         let mut column = vec![0.0; n];
