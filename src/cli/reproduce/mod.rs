@@ -125,5 +125,11 @@ pub fn run(args: &ReproduceArgs, out: &mut dyn Write) -> Result<(), UsageError> 
         args.out.display(),
         names.join(" ")
     )
-    .map_err(|e| UsageError(format!("cannot write output: {e}")))
+    .map_err(|e| {
+        UsageError(format!(
+            "wrote {} files to {}, but cannot write this summary to standard output: {e}",
+            names.len(),
+            args.out.display()
+        ))
+    })
 }
