@@ -4,6 +4,7 @@ mod bench;
 #[cfg(test)]
 mod fuzz;
 mod memory;
+mod output;
 mod reproduce;
 mod run;
 mod tables;
