@@ -393,3 +393,50 @@ fn nls_memory_is_checked_before_allocating() {
     let (code, _, err) = common::ecr_with_address_space(LIMIT_KIB, &nls("4096", &[]));
     assert_eq!(code, 0, "{err}");
 }
+
+/// SIGINT (Ctrl-C) on a long run: one line on stderr saying where it got to (t, steps of
+/// total), exit status 130, nothing on stdout. (It used to die silently by the signal.) In a
+/// pipe, as here, no progress bar is drawn: stderr holds only that line.
+#[test]
+fn interrupted_run_reports_where_it_got_to() {
+    let args = [
+        "run",
+        "--problem",
+        "duffing",
+        "--r",
+        "2",
+        "--h",
+        "1e-6",
+        "--t-end",
+        "100",
+    ];
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_ecr"))
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("run ecr");
+    std::thread::sleep(std::time::Duration::from_millis(700));
+    let sent = std::process::Command::new("kill")
+        .args(["-s", "INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(sent.success());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(out.status.code(), Some(130), "{err}");
+    assert!(out.stdout.is_empty());
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.starts_with("error: interrupted at t = "), "{err}");
+    assert!(err.contains(" of 100000000 steps"), "{err}");
+    let steps: u64 = err
+        .split(" after ")
+        .nth(1)
+        .unwrap()
+        .split(' ')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(steps > 0, "{err}");
+}

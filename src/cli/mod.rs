@@ -5,6 +5,7 @@ mod bench;
 mod fuzz;
 mod memory;
 mod output;
+mod progress;
 mod reproduce;
 mod run;
 mod tables;

@@ -1,13 +1,15 @@
 //! `ecr run`: integrate one of the paper's test problems and report the run as JSON.
 
-use super::{UsageError, memory};
+use super::{UsageError, memory, progress};
 use clap::{Args, ValueEnum};
 use ecr_runtime::integrate::{IntegrateOptions, Integrator, Report, integrate};
 use ecr_runtime::problems::{Duffing, Fpu, Nls, Wind};
 use ecr_runtime::second_order::TcStepper;
 use ecr_runtime::stepper::{EcStepper, Predictor, SolverSettings, StageSolver};
 use serde_json::{Value, json};
-use std::io::Write;
+use std::io::{IsTerminal, Write};
+use std::sync::Once;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 /// Refuse runs with more steps than this (h far too small for the interval).
@@ -67,7 +69,10 @@ impl MethodArg {
 #[derive(Args, Debug)]
 #[command(
     after_help = "Bad input and runtime failures (e.g. non-convergence of the stage equations) \
-                  print one line starting with 'error: ' on stderr and exit with status 2."
+                  print one line starting with 'error: ' on stderr and exit with status 2. \
+                  On a terminal, a progress bar shows the steps on stderr. An interrupted run \
+                  (Ctrl-C, SIGINT) prints the time t and the steps it reached on stderr and \
+                  exits with status 130."
 )]
 pub struct RunArgs {
     /// Test problem.
@@ -152,6 +157,44 @@ struct Outcome {
     seconds: f64,
 }
 
+/// Where the current integration has got to, for the report of an interrupted run (read by
+/// the SIGINT handler, written by the integration's observer).
+struct Progress {
+    t_bits: AtomicU64,
+    steps: AtomicU64,
+    total: AtomicU64,
+}
+
+static PROGRESS: Progress = Progress {
+    t_bits: AtomicU64::new(0),
+    steps: AtomicU64::new(0),
+    total: AtomicU64::new(0),
+};
+
+/// On SIGINT (Ctrl-C): one line on stderr saying where the run got to, exit status 130 (the
+/// shell's 128 + SIGINT). Installed once per process.
+fn report_interrupts() {
+    static ONCE: Once = Once::new();
+    ONCE.call_once(|| {
+        // If another handler is already installed, SIGINT keeps its behaviour.
+        let _ = ctrlc::set_handler(|| {
+            let t = f64::from_bits(PROGRESS.t_bits.load(Ordering::Relaxed));
+            let steps = PROGRESS.steps.load(Ordering::Relaxed);
+            let total = PROGRESS.total.load(Ordering::Relaxed);
+            let newline = if std::io::stderr().is_terminal() {
+                "\n"
+            } else {
+                ""
+            };
+            eprintln!(
+                "{newline}error: interrupted at t = {t} after {steps} of {total} steps; \
+                 no report written"
+            );
+            std::process::exit(130);
+        });
+    });
+}
+
 fn run_system<I: Integrator>(
     stepper: Result<I, ecr_runtime::Error>,
     y0: Vec<f64>,
@@ -159,6 +202,13 @@ fn run_system<I: Integrator>(
 ) -> Result<Outcome, UsageError> {
     let mut stepper = stepper.map_err(usage)?;
     let mut y = y0;
+    // integrate's count: ⌈T/h⌉ up to its 1e−9 relative slack.
+    let total = (args.t_end / args.h * (1.0 - 1e-9)).ceil().max(0.0) as u64;
+    PROGRESS.total.store(total, Ordering::Relaxed);
+    PROGRESS.steps.store(0, Ordering::Relaxed);
+    PROGRESS.t_bits.store(0.0f64.to_bits(), Ordering::Relaxed);
+    let bar = progress::bar(total, &format!("ecr run --problem {}", args.problem.name()));
+    let mut calls = 0u64;
     let start = Instant::now();
     let report = integrate(
         &mut stepper,
@@ -169,11 +219,19 @@ fn run_system<I: Integrator>(
             // The report's max_energy_error is over every step. H costs less than a step for
             // every problem (the NLS: one FFT against 2·s per sweep), so this stays cheap.
             energy_every: 1,
-            observe_every: 0,
+            // The observer records the progress (it is called at t0, then after every step).
+            observe_every: 1,
         },
-        |_, _, _| {},
-    )
-    .map_err(|e| UsageError(format!("integration failed: {e}")))?;
+        |t, _, _| {
+            let steps = calls;
+            calls += 1;
+            PROGRESS.t_bits.store(t.to_bits(), Ordering::Relaxed);
+            PROGRESS.steps.store(steps, Ordering::Relaxed);
+            bar.set_position(steps);
+        },
+    );
+    bar.finish_and_clear();
+    let report = report.map_err(|e| UsageError(format!("integration failed: {e}")))?;
     Ok(Outcome {
         report,
         y,
@@ -306,6 +364,7 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), UsageError> {
         if args.newton { " and --newton" } else { "" }
     );
     memory::check(&what, memory_estimate(args))?;
+    report_interrupts();
     let settings = solver_settings(args);
     let s = args.s.unwrap_or(args.r);
     let (outcome, parameters, global_error) = match args.problem {
