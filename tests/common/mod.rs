@@ -53,7 +53,7 @@ pub fn ecr_with_address_space(kib: u64, args: &[&str]) -> (i32, String, String) 
 }
 
 /// Runs the `ecr` binary with `args`, sends it `signal` (a `kill -s` name: INT, KILL) after
-/// `after`, and waits for it. Returns the exit status.
+/// `after` unless it has finished by then, and waits for it. Returns the exit status.
 pub fn ecr_interrupted(
     args: &[&str],
     after: std::time::Duration,
@@ -65,8 +65,14 @@ pub fn ecr_interrupted(
         .stderr(std::process::Stdio::null())
         .spawn()
         .expect("run ecr");
-    std::thread::sleep(after);
-    // Fails harmlessly if the child has already exited (it is not reaped before the wait).
+    let deadline = std::time::Instant::now() + after;
+    while std::time::Instant::now() < deadline {
+        if let Some(status) = child.try_wait().expect("poll ecr") {
+            return status; // finished before the signal
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    // Fails harmlessly if the child has exited since the last poll (not reaped yet).
     let _ = Command::new("kill")
         .args(["-s", signal, &child.id().to_string()])
         .status();
@@ -87,46 +93,58 @@ pub fn dir_contents(dir: &std::path::Path) -> Option<std::collections::BTreeMap<
     )
 }
 
-/// Kills `ecr ARGS --out DIR` (SIGKILL and SIGINT) at several moments, each time into a
-/// directory holding a previous run's files (stand-ins whose contents are "previous run"),
-/// and checks that DIR is then either exactly as it was or complete: the names of
-/// `complete` and none of the old contents. Finally, no staging directory stays beside it
-/// once a run completes.
-pub fn check_interrupted_runs_leave_old_or_complete(
-    args: &[&str],
-    complete: &std::collections::BTreeSet<String>,
-    moments: &[(f64, &str)],
-) {
+/// Kills `ecr ARGS --out DIR` (SIGKILL and SIGINT) at the given moments (seconds), each time
+/// into a directory holding a previous run's files (stand-ins whose contents are "previous
+/// run"), then lets one run complete the same way. Checks that DIR was each time either
+/// exactly as it was or complete (the names of the completed run's files, none of the old
+/// contents), and that no staging directory stays beside it once a run completes.
+pub fn check_interrupted_runs_leave_old_or_complete(args: &[&str], moments: &[(f64, &str)]) {
+    use std::collections::{BTreeMap, BTreeSet};
     let root = TempDir::new("killed");
     let dir = root.0.join("out");
-    let old: std::collections::BTreeMap<String, Vec<u8>> = ["report.md", "summary.md", "stale.csv"]
+    let old: BTreeMap<String, Vec<u8>> = ["report.md", "summary.md", "stale.csv"]
         .iter()
         .map(|n| (n.to_string(), b"previous run".to_vec()))
         .collect();
     let mut full: Vec<&str> = args.to_vec();
     full.extend_from_slice(&["--out", dir.to_str().unwrap()]);
-    for &(seconds, signal) in moments {
+    let reset = || {
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).unwrap();
         for (name, bytes) in &old {
             std::fs::write(dir.join(name), bytes).unwrap();
         }
+    };
+    let mut seen = Vec::new();
+    for &(seconds, signal) in moments {
+        reset();
         let status = ecr_interrupted(&full, std::time::Duration::from_secs_f64(seconds), signal);
-        let now = dir_contents(&dir).unwrap_or_else(|| panic!("{signal} at {seconds} s: no --out"));
+        let now = dir_contents(&dir);
+        seen.push((format!("{signal} at {seconds} s ({status})"), now));
+    }
+    reset();
+    let (code, _, err) = ecr(&full);
+    assert_eq!(code, 0, "{err}");
+    let done = dir_contents(&dir).unwrap();
+    assert!(
+        done.values().all(|v| v != b"previous run"),
+        "an old file survived"
+    );
+    let complete: BTreeSet<&String> = done.keys().collect();
+    for (when, now) in seen {
+        let now = now.unwrap_or_else(|| panic!("{when}: no --out"));
         if now != old {
-            let names: std::collections::BTreeSet<String> = now.keys().cloned().collect();
             assert_eq!(
-                &names, complete,
-                "{signal} at {seconds} s ({status}): mixed files"
+                now.keys().collect::<BTreeSet<_>>(),
+                complete,
+                "{when}: mixed files"
             );
             assert!(
                 now.values().all(|v| v != b"previous run"),
-                "{signal} at {seconds} s: an old file survived"
+                "{when}: an old file survived"
             );
         }
     }
-    let (code, _, err) = ecr(&full);
-    assert_eq!(code, 0, "{err}");
     let left: Vec<_> = std::fs::read_dir(&root.0)
         .unwrap()
         .map(|e| e.unwrap().file_name())
