@@ -1,7 +1,9 @@
 //! The `ecr` command: regenerate coefficient tables (and, as the project grows, run the
 //! paper's experiments and benchmarks).
 //!
-//! Bad input prints one line on stderr and exits with status 2; nothing panics.
+//! Bad input prints one line on stderr and exits with status 2; nothing panics. Standard
+//! output that cannot be written is one line and status 1; a reader that closes the pipe
+//! early (`| head`) ends the output silently (status 0).
 
 mod cli;
 

@@ -273,3 +273,36 @@ fn help_lists_reproduce() {
     assert_eq!(code, 0);
     assert!(stdout.contains("--quick") && stdout.contains("--out"));
 }
+
+/// `reproduce > /dev/full`: the files are complete and stay; the line on stderr says so, and
+/// the status is 1 (standard output failed), not 2 (bad input or a failed run).
+#[test]
+fn full_stdout_keeps_the_files_and_says_so() {
+    let out = TempDir::new("reproduce-full");
+    let dir = out.0.to_str().unwrap();
+    let full = std::fs::File::create("/dev/full").unwrap();
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_ecr"))
+        .args(["reproduce", "--quick", "--out", dir])
+        .stdout(full)
+        .output()
+        .unwrap();
+    let err = String::from_utf8(run.stderr).unwrap();
+    assert_eq!(run.status.code(), Some(1), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(
+        err.starts_with("error: wrote ") && err.contains(dir),
+        "{err}"
+    );
+    assert!(out.0.join("report.md").is_file());
+}
+
+/// A kill at any moment (SIGKILL, SIGINT; before, during and after the computation and the
+/// writing) leaves --out as it was or complete: the run writes into a staging directory and
+/// swaps it in at the end. (It used to write in place: old files stayed beside new ones.)
+#[test]
+fn interrupted_reproduce_leaves_the_old_or_a_complete_directory() {
+    common::check_interrupted_runs_leave_old_or_complete(
+        &["reproduce", "--quick"],
+        &[(0.2, "KILL"), (0.8, "INT"), (1.6, "KILL")],
+    );
+}

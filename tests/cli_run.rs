@@ -453,3 +453,104 @@ fn help_mentions_exit_status() {
     assert!(out.contains("status 2"), "{out}");
     assert!(out.contains("--paper-solver"));
 }
+
+/// Sizes are checked before anything is allocated: an NLS grid or a Newton matrix that does
+/// not fit in memory is one line and exit status 2 (they used to abort: "memory allocation of
+/// 17179869184 bytes failed", SIGABRT). Every case runs under `ulimit -v` 8 GiB, so that a
+/// regression aborts instead of taking the machine's memory; --n 16777216 (about 11 GB) might
+/// fit in a large machine's memory but not in the 8 GiB, and the message names the limit
+/// (MemAvailable where the machine has less).
+#[test]
+fn nls_memory_is_checked_before_allocating() {
+    const LIMIT_KIB: u64 = 8 * 1024 * 1024;
+    let nls = |n: &'static str, extra: &[&'static str]| {
+        let mut args = vec![
+            "run",
+            "--problem",
+            "nls",
+            "--n",
+            n,
+            "--r",
+            "2",
+            "--h",
+            "0.01",
+            "--t-end",
+            "0.01",
+        ];
+        args.extend_from_slice(extra);
+        args
+    };
+    for (args, limit) in [
+        (nls("2147483648", &[]), ""),
+        (nls("18446744073709551614", &[]), ""),
+        (nls("65536", &["--newton"]), ""),
+        (nls("16777216", &[]), "ulimit -v"),
+    ] {
+        let (code, out, err) = common::ecr_with_address_space(LIMIT_KIB, &args);
+        assert_eq!(code, 2, "{args:?}: stdout {out} stderr {err}");
+        assert!(out.is_empty(), "{args:?}: stdout {out}");
+        assert!(
+            err.starts_with("error: --problem nls --n"),
+            "{args:?}: {err}"
+        );
+        assert!(
+            err.contains("needs about") && err.contains("of memory"),
+            "{args:?}: {err}"
+        );
+        assert!(
+            err.contains(limit) || err.contains("MemAvailable"),
+            "{args:?}: {err}"
+        );
+        assert_eq!(err.lines().count(), 1, "{args:?}: {err}");
+    }
+    // A grid that fits runs under the same limit.
+    let (code, _, err) = common::ecr_with_address_space(LIMIT_KIB, &nls("4096", &[]));
+    assert_eq!(code, 0, "{err}");
+}
+
+/// SIGINT (Ctrl-C) on a long run: one line on stderr saying where it got to (t, steps of
+/// total), exit status 130, nothing on stdout. (It used to die silently by the signal.) In a
+/// pipe, as here, no progress bar is drawn: stderr holds only that line.
+#[test]
+fn interrupted_run_reports_where_it_got_to() {
+    let args = [
+        "run",
+        "--problem",
+        "duffing",
+        "--r",
+        "2",
+        "--h",
+        "1e-6",
+        "--t-end",
+        "100",
+    ];
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_ecr"))
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("run ecr");
+    std::thread::sleep(std::time::Duration::from_millis(700));
+    let sent = std::process::Command::new("kill")
+        .args(["-s", "INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(sent.success());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(out.status.code(), Some(130), "{err}");
+    assert!(out.stdout.is_empty());
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.starts_with("error: interrupted at t = "), "{err}");
+    assert!(err.contains(" of 100000000 steps"), "{err}");
+    let steps: u64 = err
+        .split(" after ")
+        .nth(1)
+        .unwrap()
+        .split(' ')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(steps > 0, "{err}");
+}

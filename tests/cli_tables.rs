@@ -104,3 +104,41 @@ fn bad_input_is_one_line_and_exit_status_2() {
         assert!(!err.contains("panicked"), "{args:?}");
     }
 }
+
+/// Unix conventions for standard output: a reader that stops early (`ecr … | head`) ends the
+/// output silently with status 0 (it was "cannot write output: Broken pipe", status 2); a
+/// full device is one line and status 1 (not 2, which is for bad input).
+#[test]
+fn closed_pipe_is_silent_and_full_device_is_status_1() {
+    use std::io::Read;
+    use std::process::{Command, Stdio};
+    // 16384 numbers of JSON, far more than a pipe holds: the writer meets the closed pipe.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_ecr"))
+        .args(["run", "--problem", "nls", "--n", "8192", "--r", "1"])
+        .args(["--h", "0.01", "--t-end", "0.01"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run ecr");
+    let mut first = [0u8; 1];
+    child.stdout.take().unwrap().read_exact(&mut first).unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(first[0], b'{');
+    assert_eq!(out.status.code(), Some(0), "{out:?}");
+    assert!(
+        out.stderr.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+
+    let full = std::fs::File::create("/dev/full").unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_ecr"))
+        .args(["tables", "--family", "ec", "--r", "2"])
+        .stdout(full)
+        .output()
+        .unwrap();
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.starts_with("error: cannot write output: "), "{err}");
+}

@@ -10,6 +10,7 @@ pub mod problems;
 pub mod second_order;
 pub mod special;
 pub mod stepper;
+mod storage;
 pub mod system;
 pub mod tables;
 

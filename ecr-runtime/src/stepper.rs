@@ -40,6 +40,7 @@
 
 use crate::operator::{LinearOperator, PhiBank};
 use crate::phi::two_sum;
+use crate::storage::ensure_allocatable;
 use crate::system::System;
 use crate::tables::{Coefficients, coefficients};
 use crate::{Error, Result};
@@ -187,8 +188,9 @@ pub enum StageSolver {
     /// evaluations of g per step). For stiff nonlinearities (e.g. Allen–Cahn with small ε,
     /// tests/newton.rs). Cost per step: the s·d × s·d Newton matrix and its LU factorisation
     /// (allocated per step), s² products of d × d matrices; once per step size, the kernel
-    /// matrices from `s·r·d` bank applications. Meant for moderate d. ECrP only: the other
-    /// steppers reject it.
+    /// matrices from `s·r·d` bank applications. Meant for moderate d: construction fails
+    /// with an error naming the size when the `2s²d² + 2d²` numbers cannot be allocated. ECrP
+    /// only: the other steppers reject it.
     Newton,
 }
 
@@ -568,6 +570,16 @@ pub struct Stepper<K: Kernel, S: System, B: Buffers> {
     newton: Option<Box<NewtonState>>,
 }
 
+/// The most numbers the simplified Newton iteration holds at once: the stage matrices and
+/// the Newton matrix (s²d² each), the Jacobian and one d × d block product; `None` on overflow.
+fn newton_entries(s: usize, d: usize) -> Option<usize> {
+    let dd = d.checked_mul(d)?;
+    s.checked_mul(s)?
+        .checked_mul(dd)?
+        .checked_add(dd)?
+        .checked_mul(2)
+}
+
 /// What the simplified Newton iteration keeps: the stage matrices for the step size and
 /// scratch for the Jacobian.
 struct NewtonState {
@@ -737,10 +749,19 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
     /// # Errors
     /// [`Error::InvalidParameter`] for bad settings, [`Error::InvalidStepSize`] for h,
     /// [`Error::DimensionMismatch`] if fixed-size buffers do not fit the system, the errors of
-    /// [`check_system`](crate::system::check_system), and whatever building the φ-bank reports.
+    /// [`check_system`](crate::system::check_system), [`Error::InvalidInput`] naming the size
+    /// if [`StageSolver::Newton`]'s `O(s²d²)` matrices cannot be allocated (checked here,
+    /// before the first step would abort on them), and whatever building the φ-bank reports.
     pub fn from_kernel(kernel: K, system: S, h: f64, settings: SolverSettings) -> Result<Self> {
         check_settings(&settings)?;
         crate::system::check_system(&system)?;
+        if settings.solver == StageSolver::Newton {
+            let (s, d) = (kernel.s(), system.dim());
+            ensure_allocatable(
+                &format!("simplified Newton for d = {d}, s = {s} (2s²d² + 2d² numbers)"),
+                newton_entries(s, d),
+            )?;
+        }
         let buf = B::with_sizes(kernel.r(), kernel.s(), system.dim())?;
         let (bank, coef, fused, ws) = Self::build_bank(&system, &kernel, h, settings.predictor)?;
         Ok(Stepper {

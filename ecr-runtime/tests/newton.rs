@@ -220,3 +220,31 @@ fn newton_is_rejected_where_it_is_not_implemented() {
     let r = TcStepper::with_nodes(sys, 2, 2, 0.01, newton());
     assert!(matches!(r, Err(Error::InvalidParameter(_))));
 }
+
+/// Newton's `O(s²d²)` matrices are refused at construction, with their size, when they cannot
+/// be allocated (they used to abort the process at the first step): d = 2²² needs 2⁴⁹ bytes,
+/// more than a 64-bit address space maps (47 bits for user space on x86-64 and AArch64), and
+/// d = 2⁴⁰ overflows the count. Fixed-point sweeps (O(d) storage) are not affected.
+#[test]
+fn newton_storage_that_cannot_exist_is_an_error_naming_its_size() {
+    use ecr_runtime::operator::Zero;
+    use ecr_runtime::system::Semilinear;
+    let newton = SolverSettings {
+        solver: StageSolver::Newton,
+        ..SolverSettings::default()
+    };
+    for d in [1usize << 22, 1 << 40] {
+        let system = Semilinear::new(Zero::new(d), |_: &[f64], out: &mut [f64]| out.fill(0.0));
+        let err = EcStepper::with_nodes(system, 2, 2, 0.1, newton)
+            .err()
+            .unwrap_or_else(|| panic!("d = {d}: accepted"));
+        let msg = err.to_string();
+        assert!(matches!(err, Error::InvalidInput(_)), "{msg}");
+        assert!(
+            msg.contains(&format!("d = {d}, s = 2")) && msg.contains("more than can be allocated"),
+            "{msg}"
+        );
+    }
+    let system = Semilinear::new(Zero::new(4), |_: &[f64], out: &mut [f64]| out.fill(0.0));
+    assert!(EcStepper::with_nodes(system, 2, 2, 0.1, newton).is_ok());
+}

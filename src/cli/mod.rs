@@ -3,6 +3,9 @@
 mod bench;
 #[cfg(test)]
 mod fuzz;
+mod memory;
+mod output;
+mod progress;
 mod provenance;
 mod reproduce;
 mod run;
@@ -88,13 +91,60 @@ where
     }
 }
 
+/// Standard output that remembers its first write error, so that [`main`] can tell a reader
+/// that went away from a failed command.
+struct Stdout<W> {
+    inner: W,
+    error: Option<std::io::ErrorKind>,
+}
+
+impl<W: std::io::Write> std::io::Write for Stdout<W> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let result = self.inner.write(buf);
+        if let Err(e) = &result {
+            self.error.get_or_insert(e.kind());
+        }
+        result
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        let result = self.inner.flush();
+        if let Err(e) = &result {
+            self.error.get_or_insert(e.kind());
+        }
+        result
+    }
+}
+
 /// Entry point of the binary.
+///
+/// Exit status: 0 on success; 2 with one line on stderr for bad input or a failed command;
+/// 1 with one line on stderr if standard output cannot be written (e.g. `> /dev/full`): the
+/// command's files, if it writes any, are complete, and the line says so. A reader that
+/// closes the pipe early (`ecr tables … | head`) is not an error: the output stops there,
+/// silently, with status 0.
 pub fn main() -> ExitCode {
     let stdout = std::io::stdout();
-    let mut lock = stdout.lock();
-    match run(std::env::args_os(), &mut lock) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(UsageError(msg)) => {
+    let mut out = Stdout {
+        inner: stdout.lock(),
+        error: None,
+    };
+    let result = run(std::env::args_os(), &mut out);
+    let flushed = std::io::Write::flush(&mut out);
+    match (out.error, result) {
+        (Some(std::io::ErrorKind::BrokenPipe), _) => ExitCode::SUCCESS,
+        (Some(_), Err(UsageError(msg))) => {
+            let msg = msg.strip_prefix("error: ").unwrap_or(&msg);
+            eprintln!("error: {msg}");
+            ExitCode::from(1)
+        }
+        (Some(_), Ok(())) => {
+            let e = flushed.err().map_or_else(String::new, |e| e.to_string());
+            eprintln!("error: cannot write output: {e}");
+            ExitCode::from(1)
+        }
+        (None, Ok(())) => ExitCode::SUCCESS,
+        (None, Err(UsageError(msg))) => {
             let msg = msg.strip_prefix("error: ").unwrap_or(&msg);
             eprintln!("error: {msg}");
             ExitCode::from(2)

@@ -1,13 +1,15 @@
 //! `ecr run`: integrate one of the paper's test problems and report the run as JSON.
 
-use super::UsageError;
+use super::{UsageError, memory, progress};
 use clap::{Args, ValueEnum};
 use ecr_runtime::integrate::{IntegrateOptions, Integrator, Report, integrate};
 use ecr_runtime::problems::{Duffing, Fpu, Nls, Wind};
 use ecr_runtime::second_order::TcStepper;
 use ecr_runtime::stepper::{EcStepper, Predictor, SolverSettings, StageSolver};
 use serde_json::{Value, json};
-use std::io::Write;
+use std::io::{IsTerminal, Write};
+use std::sync::Once;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 /// Refuse runs with more steps than this (h far too small for the interval).
@@ -67,7 +69,10 @@ impl MethodArg {
 #[derive(Args, Debug)]
 #[command(
     after_help = "Bad input and runtime failures (e.g. non-convergence of the stage equations) \
-                  print one line starting with 'error: ' on stderr and exit with status 2."
+                  print one line starting with 'error: ' on stderr and exit with status 2. \
+                  On a terminal, a progress bar shows the steps on stderr. An interrupted run \
+                  (Ctrl-C, SIGINT) prints the time t and the steps it reached on stderr and \
+                  exits with status 130."
 )]
 pub struct RunArgs {
     /// Test problem.
@@ -86,7 +91,8 @@ pub struct RunArgs {
     /// Wind radius r (the paper's "r = 20") [default: 20].
     #[arg(long, allow_negative_numbers = true)]
     amplitude: Option<f64>,
-    /// NLS grid size N (even) [default: 128].
+    /// NLS grid size N (even) [default: 128]. A run whose memory, estimated from N, r, s and
+    /// --newton, exceeds 3/4 of the memory available (MemAvailable, ulimit -v) is refused.
     #[arg(long)]
     n: Option<usize>,
     /// Method family: ec (any problem; fpu in first-order form), tc or rknc (fpu).
@@ -151,6 +157,44 @@ struct Outcome {
     seconds: f64,
 }
 
+/// Where the current integration has got to, for the report of an interrupted run (read by
+/// the SIGINT handler, written by the integration's observer).
+struct Progress {
+    t_bits: AtomicU64,
+    steps: AtomicU64,
+    total: AtomicU64,
+}
+
+static PROGRESS: Progress = Progress {
+    t_bits: AtomicU64::new(0),
+    steps: AtomicU64::new(0),
+    total: AtomicU64::new(0),
+};
+
+/// On SIGINT (Ctrl-C): one line on stderr saying where the run got to, exit status 130 (the
+/// shell's 128 + SIGINT). Installed once per process.
+fn report_interrupts() {
+    static ONCE: Once = Once::new();
+    ONCE.call_once(|| {
+        // If another handler is already installed, SIGINT keeps its behaviour.
+        let _ = ctrlc::set_handler(|| {
+            let t = f64::from_bits(PROGRESS.t_bits.load(Ordering::Relaxed));
+            let steps = PROGRESS.steps.load(Ordering::Relaxed);
+            let total = PROGRESS.total.load(Ordering::Relaxed);
+            let newline = if std::io::stderr().is_terminal() {
+                "\n"
+            } else {
+                ""
+            };
+            eprintln!(
+                "{newline}error: interrupted at t = {t} after {steps} of {total} steps; \
+                 no report written"
+            );
+            std::process::exit(130);
+        });
+    });
+}
+
 fn run_system<I: Integrator>(
     stepper: Result<I, ecr_runtime::Error>,
     y0: Vec<f64>,
@@ -158,6 +202,13 @@ fn run_system<I: Integrator>(
 ) -> Result<Outcome, UsageError> {
     let mut stepper = stepper.map_err(usage)?;
     let mut y = y0;
+    // integrate's count: ⌈T/h⌉ up to its 1e−9 relative slack.
+    let total = (args.t_end / args.h * (1.0 - 1e-9)).ceil().max(0.0) as u64;
+    PROGRESS.total.store(total, Ordering::Relaxed);
+    PROGRESS.steps.store(0, Ordering::Relaxed);
+    PROGRESS.t_bits.store(0.0f64.to_bits(), Ordering::Relaxed);
+    let bar = progress::bar(total, &format!("ecr run --problem {}", args.problem.name()));
+    let mut calls = 0u64;
     let start = Instant::now();
     let report = integrate(
         &mut stepper,
@@ -165,12 +216,22 @@ fn run_system<I: Integrator>(
         args.t_end,
         &mut y,
         IntegrateOptions {
+            // The report's max_energy_error is over every step. H costs less than a step for
+            // every problem (the NLS: one FFT against 2·s per sweep), so this stays cheap.
             energy_every: 1,
-            observe_every: 0,
+            // The observer records the progress (it is called at t0, then after every step).
+            observe_every: 1,
         },
-        |_, _, _| {},
-    )
-    .map_err(|e| UsageError(format!("integration failed: {e}")))?;
+        |t, _, _| {
+            let steps = calls;
+            calls += 1;
+            PROGRESS.t_bits.store(t.to_bits(), Ordering::Relaxed);
+            PROGRESS.steps.store(steps, Ordering::Relaxed);
+            bar.set_position(steps);
+        },
+    );
+    bar.finish_and_clear();
+    let report = report.map_err(|e| UsageError(format!("integration failed: {e}")))?;
     Ok(Outcome {
         report,
         y,
@@ -258,9 +319,52 @@ fn solver_settings(args: &RunArgs) -> SolverSettings {
     settings
 }
 
+/// A bound on the bytes (address space) `ecr run` needs. Per component of the state
+/// (dimension d): the stepper's buffers (4s + r + 6 vectors), the φ-bank (τ nodes × (r + 1)
+/// functions, a complex number per Fourier mode, d/2 modes) and 320 bytes for the rest: the
+/// FFT plans, eigenvalues and scratch, y, and later the JSON report (measured, as the smallest
+/// `ulimit -v` a run passes, for the NLS with N = 2²⁰: 135 bytes for N a power of two, 250 for
+/// N = 2p with p prime, which rustfft transforms by Rader's or Bluestein's algorithm). With
+/// --newton, the Newton matrices (2s²d² + 2d² numbers). r and s are clamped to the tables'
+/// range: larger ones are refused later with their own message.
+fn memory_estimate(args: &RunArgs) -> f64 {
+    const BASE: f64 = 32.0 * 1024.0 * 1024.0;
+    let d = match args.problem {
+        ProblemArg::Nls => 2.0 * args.n.unwrap_or(128) as f64,
+        // Duffing and wind: 2; FPU (m = 3) in first-order form: 12.
+        _ => 16.0,
+    };
+    let r = args.r.min(ecr_codegen::MAX_R) as f64;
+    let s = args.s.unwrap_or(args.r).min(ecr_codegen::MAX_S) as f64;
+    let taus = if args.extrapolate {
+        2.0 * s + 1.0
+    } else {
+        s + 1.0
+    };
+    let per_component = 8.0 * (4.0 * s + r + 6.0) + 8.0 * taus * (r + 1.0) + 320.0;
+    let newton = if args.newton {
+        16.0 * (s * s + 1.0) * d * d
+    } else {
+        0.0
+    };
+    BASE + d * per_component + newton
+}
+
 /// Runs `ecr run`.
 pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), UsageError> {
     check_inputs(args)?;
+    let what = match (args.problem, args.n) {
+        (ProblemArg::Nls, Some(n)) => format!("--problem nls --n {n}"),
+        _ => format!("--problem {}", args.problem.name()),
+    };
+    let what = format!(
+        "{what} with r = {}, s = {}{}",
+        args.r,
+        args.s.unwrap_or(args.r),
+        if args.newton { " and --newton" } else { "" }
+    );
+    memory::check(&what, memory_estimate(args))?;
+    report_interrupts();
     let settings = solver_settings(args);
     let s = args.s.unwrap_or(args.r);
     let (outcome, parameters, global_error) = match args.problem {

@@ -44,7 +44,13 @@ pub fn run(args: &TablesArgs, out: &mut dyn Write) -> Result<(), UsageError> {
         FamilyArg::Rknc => Family::Rknc,
     };
     let s = args.s.unwrap_or(args.r);
-    let table = MethodTable::generate(family, args.r, s).map_err(|e| UsageError(e.to_string()))?;
+    let spinner = super::progress::spinner(&format!(
+        "generating the exact tables of {family} r = {}, s = {s}",
+        args.r
+    ));
+    let table = MethodTable::generate(family, args.r, s).map_err(|e| UsageError(e.to_string()));
+    spinner.finish_and_clear();
+    let table = table?;
     let text = match args.format {
         Format::Json => {
             let mut t = serde_json::to_string_pretty(&to_json(&table))

@@ -13,6 +13,7 @@ use super::{
     combine_shape,
 };
 use crate::phi::{check_symmetric, symmetric_eigen, two_prod, two_sum, validate_matrix};
+use crate::storage::ensure_allocatable;
 use crate::{Error, Result};
 
 /// `hi + lo = (Mh + Ml) x` in double-double (Dot2 on the high part), without allocation.
@@ -150,6 +151,19 @@ impl LinearOperator for Dense {
 impl Dense {
     fn bank(&self, h: f64, taus: &[f64], p: usize, f: NodeFunctions) -> Result<DenseBank> {
         check_bank_scale(h, taus, self.a.amax())?;
+        // The bank's (p + 1) matrices and a propagator tail per node, and the scaling and
+        // squaring's few d × d working matrices.
+        let d = self.a.nrows();
+        ensure_allocatable(
+            &format!(
+                "the φ-bank of a dense {d} × {d} operator ({} nodes, p = {p})",
+                taus.len()
+            ),
+            taus.len()
+                .checked_mul(p + 2)
+                .and_then(|m| m.checked_add(8))
+                .and_then(|m| m.checked_mul(d.checked_mul(d)?)),
+        )?;
         let mut phis = Vec::with_capacity(taus.len() * (p + 1));
         let mut lo = Vec::with_capacity(taus.len());
         for (i, tau) in taus.iter().enumerate() {

@@ -18,7 +18,8 @@
 //!
 //! Each type offers the same inherent methods, and implements [`TestProblem`] for code that runs
 //! one harness over all of them. The nonlinearity, the gradient and the energies work on slices
-//! and never allocate; the matrices are built on request as [`DMatrix`].
+//! and never allocate (except [`Nls::energy`], an FFT whose plan and buffers are made at its
+//! first call); the matrices are built on request as [`DMatrix`].
 //!
 //! ```
 //! use ecr_runtime::problems::Duffing;

@@ -23,6 +23,7 @@
 use super::{Duffing, Fpu, Nls, TestProblem, Wind};
 use crate::operator::{Circulant, Dense, LinearOperator, SkewPair};
 use crate::second_order::{Omega, SecondOrderSystem};
+use crate::storage::ensure_allocatable;
 use crate::system::System;
 use crate::{Error, Result};
 
@@ -71,8 +72,14 @@ impl<P: TestProblem> ProblemSystem<P, Dense> {
     /// The problem with A = `problem.linear_matrix()` as a [`Dense`] operator.
     ///
     /// # Errors
-    /// [`Error::NonFinite`] if the matrix has NaN/∞ entries (extreme parameters).
+    /// [`Error::NonFinite`] if the matrix has NaN/∞ entries (extreme parameters),
+    /// [`Error::InvalidInput`] naming the size if its d² entries cannot be allocated.
     pub fn dense(problem: P) -> Result<Self> {
+        let d = problem.dim();
+        ensure_allocatable(
+            &format!("the dense {d} × {d} linear part"),
+            d.checked_mul(d),
+        )?;
         let op = Dense::new(problem.linear_matrix())?;
         Self::new(problem, op)
     }

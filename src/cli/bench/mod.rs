@@ -13,8 +13,9 @@ mod summary;
 mod sweep;
 
 use super::UsageError;
+use super::output::OutputDir;
 use super::reproduce::plots::{Curve, Figure, Panel, REFERENCE_KEY, write_png, write_svg};
-use super::reproduce::{Csv, num, prepare_dir, write_file};
+use super::reproduce::{Csv, num, write_file};
 use clap::{Args, ValueEnum};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -34,7 +35,8 @@ pub struct BenchArgs {
     /// Tiny intervals and two points per method, one timed run each (seconds in total).
     #[arg(long)]
     quick: bool,
-    /// Output directory (created if missing).
+    /// Output directory (created if missing, replaced whole by a complete run: with --only it
+    /// then holds that part's files only, none of a previous run's other part).
     #[arg(long, default_value = "out/bench")]
     out: PathBuf,
     /// Run only one part of the benchmark.
@@ -270,7 +272,7 @@ fn write_outputs(
 
 /// Runs `ecr bench`.
 pub fn run(args: &BenchArgs, out: &mut dyn Write) -> Result<(), UsageError> {
-    prepare_dir(&args.out)?;
+    let staged = OutputDir::stage(&args.out)?;
     let c = Config::new(args.quick);
     let start = Instant::now();
     let results = match args.only {
@@ -287,7 +289,14 @@ pub fn run(args: &BenchArgs, out: &mut dyn Write) -> Result<(), UsageError> {
     };
     bar.finish_and_clear();
     let seconds = start.elapsed().as_secs_f64();
-    let names = write_outputs(&args.out, &c, results.as_ref(), scaling.as_ref(), seconds)?;
+    let names = write_outputs(
+        staged.path(),
+        &c,
+        results.as_ref(),
+        scaling.as_ref(),
+        seconds,
+    )?;
+    let replaced = staged.commit()?;
     let points = results
         .iter()
         .flat_map(|r| &r.problems)
@@ -296,11 +305,18 @@ pub fn run(args: &BenchArgs, out: &mut dyn Write) -> Result<(), UsageError> {
         + scaling.as_ref().map_or(0, |s| s.points.len());
     writeln!(
         out,
-        "ecr bench{}: {points} points, computed in {seconds:.1} s; wrote {} files to {}:\n  {}",
+        "ecr bench{}: {points} points, computed in {seconds:.1} s; wrote {} files to {}{}:\n  {}",
         if args.quick { " --quick" } else { "" },
         names.len(),
         args.out.display(),
+        replaced.describe(),
         names.join(" ")
     )
-    .map_err(|e| UsageError(format!("cannot write output: {e}")))
+    .map_err(|e| {
+        UsageError(format!(
+            "wrote {} files to {}, but cannot write this summary to standard output: {e}",
+            names.len(),
+            args.out.display()
+        ))
+    })
 }

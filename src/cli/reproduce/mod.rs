@@ -10,6 +10,7 @@ pub(crate) mod plots;
 mod report;
 
 use super::UsageError;
+use super::output::OutputDir;
 use clap::Args;
 use experiments::{Config, Results};
 use std::fs;
@@ -21,27 +22,17 @@ use std::time::Instant;
 #[derive(Args, Debug)]
 #[command(
     after_help = "Writes p1-1, p1-2, p2-1, p2-2, p3 (.png and .svg), one CSV per sub-panel, \
-                  summary.csv and report.md into --out. An unusable --out prints one line \
+                  summary.csv and report.md into --out, replacing it whole once every file \
+                  is written (staged beside it). An unusable --out prints one line \
                   starting with 'error: ' on stderr and exits with status 2."
 )]
 pub struct ReproduceArgs {
     /// Shrink the intervals (about T/100) so that everything runs in seconds.
     #[arg(long)]
     quick: bool,
-    /// Output directory (created if missing).
+    /// Output directory (created if missing, replaced whole by a complete run).
     #[arg(long, default_value = "out/reproduce")]
     out: PathBuf,
-}
-
-/// Creates `dir` and checks that a file can be written in it.
-pub(crate) fn prepare_dir(dir: &Path) -> Result<(), UsageError> {
-    let shown = dir.display();
-    fs::create_dir_all(dir)
-        .map_err(|e| UsageError(format!("cannot create output directory '{shown}': {e}")))?;
-    let probe = dir.join(".ecr-reproduce-write-test");
-    fs::write(&probe, b"")
-        .and_then(|()| fs::remove_file(&probe))
-        .map_err(|e| UsageError(format!("cannot write in output directory '{shown}': {e}")))
 }
 
 /// A CSV table: header and rows of cells.
@@ -110,21 +101,29 @@ fn write_outputs(
 
 /// Runs `ecr reproduce`.
 pub fn run(args: &ReproduceArgs, out: &mut dyn Write) -> Result<(), UsageError> {
-    prepare_dir(&args.out)?;
+    let staged = OutputDir::stage(&args.out)?;
     let config = Config::new(args.quick);
     let methods = methods::methods();
     let start = Instant::now();
     let results = experiments::run_all(&config, &methods).map_err(UsageError)?;
     let seconds = start.elapsed().as_secs_f64();
-    let names = write_outputs(&args.out, &config, &results, &methods, seconds)?;
+    let names = write_outputs(staged.path(), &config, &results, &methods, seconds)?;
+    let replaced = staged.commit()?;
     writeln!(
         out,
-        "ecr reproduce{}: {} methods, computed in {seconds:.1} s; wrote {} files to {}:\n  {}",
+        "ecr reproduce{}: {} methods, computed in {seconds:.1} s; wrote {} files to {}{}:\n  {}",
         if args.quick { " --quick" } else { "" },
         methods.len(),
         names.len(),
         args.out.display(),
+        replaced.describe(),
         names.join(" ")
     )
-    .map_err(|e| UsageError(format!("cannot write output: {e}")))
+    .map_err(|e| {
+        UsageError(format!(
+            "wrote {} files to {}, but cannot write this summary to standard output: {e}",
+            names.len(),
+            args.out.display()
+        ))
+    })
 }
