@@ -11,7 +11,9 @@ use std::f64::consts::PI;
 use ecr_runtime::Error;
 use ecr_runtime::baselines::etdrk4::Etdrk4;
 use ecr_runtime::baselines::split_step::SplitStep;
-use ecr_runtime::baselines::splitting::{LinearFlowSplitting, StormerVerlet, composition};
+use ecr_runtime::baselines::splitting::{
+    LinearFlowSplitting, RotationSplitting, StormerVerlet, composition,
+};
 use ecr_runtime::integrate::{IntegrateOptions, Integrator, integrate};
 use ecr_runtime::operator::Dense;
 use ecr_runtime::problems::{Duffing, Nls};
@@ -187,6 +189,60 @@ fn linear_flow_splitting_orders_on_duffing() {
             |n| max_diff(&run(&mut m, &y0, t_end, n), &exact),
         );
     }
+}
+
+/// The scalar-rotation form: the same orders, and the same method as the φ-bank form on the
+/// first-order system (their steps differ only by the rounding of the rotations), with FSAL
+/// counts, a bounded energy error and a diagonal Ω required.
+#[test]
+fn rotation_splitting_orders_agreement_and_energy() {
+    let d = duffing();
+    let t_end = 2.0;
+    let exact = d.exact(t_end).unwrap();
+    let y0 = d.initial_value();
+    for (order, ns) in [
+        (2, [16, 32, 64, 128, 256]),
+        (4, [8, 16, 32, 64, 128]),
+        (6, [4, 8, 16, 32, 64]),
+        (8, [8, 12, 16, 20, 24]),
+    ] {
+        let mut m = RotationSplitting::new(duffing_second_order(&d), order, 0.1).unwrap();
+        check_order(
+            &format!("RotationSplitting order {order}"),
+            order as f64,
+            t_end,
+            &ns,
+            |n| max_diff(&run(&mut m, &y0, t_end, n), &exact),
+        );
+        let mut lfs = LinearFlowSplitting::new(d.system().unwrap(), order, 0.1).unwrap();
+        let diff = max_diff(&run(&mut m, &y0, t_end, 20), &run(&mut lfs, &y0, t_end, 20));
+        assert!(
+            diff < 1e-13,
+            "order {order}: {diff:e} from LinearFlowSplitting"
+        );
+        // FSAL: 10 steps cost 10 s + 1 evaluations of ∇U.
+        let mut fresh = RotationSplitting::new(duffing_second_order(&d), order, 0.01).unwrap();
+        let mut y = y0.clone();
+        let evals: usize = (0..10).map(|_| fresh.step(&mut y).unwrap().g_evals).sum();
+        assert_eq!(evals, 10 * composition(order).unwrap().len() + 1);
+    }
+    let mut m = RotationSplitting::new(duffing_second_order(&d), 4, 0.1).unwrap();
+    let (max, ratio, _) = energy_windows(&mut m, &y0, 0.1, 100_000);
+    println!("RotationSplitting order 4: max |ΔH| {max:.2e}, last/first window {ratio:.3}");
+    assert!(max < 1e-3 && ratio < 1.5, "{max:e} {ratio}");
+    let dense = SecondOrder::new(
+        Omega::dense(nalgebra::DMatrix::from_row_slice(
+            2,
+            2,
+            &[2.0, 1.0, 1.0, 2.0],
+        ))
+        .unwrap(),
+        |_: &[f64], f: &mut [f64]| f.fill(0.0),
+    );
+    assert!(matches!(
+        RotationSplitting::new(dense, 2, 0.1),
+        Err(Error::InvalidParameter(_))
+    ));
 }
 
 #[test]
