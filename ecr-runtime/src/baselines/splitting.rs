@@ -387,6 +387,80 @@ impl Stiffness {
     }
 }
 
+/// The (q, p) state of a composed kick–substep–kick method and its FSAL force: what
+/// [`StormerVerlet`] and [`RotationSplitting`] share. Only the force and the substep between
+/// the half-kicks differ (a drift, or a rotation of each mode).
+struct KickState {
+    q: Vec<f64>,
+    p: Vec<f64>,
+    /// The force at the current positions; after a successful step, at its result (FSAL).
+    force: Vec<f64>,
+    /// The last result (q, p), bit for bit, valid when `fsal`.
+    last: Vec<f64>,
+    fsal: bool,
+}
+
+impl KickState {
+    fn new(d: usize) -> Self {
+        KickState {
+            q: vec![0.0; d],
+            p: vec![0.0; d],
+            force: vec![0.0; d],
+            last: vec![0.0; 2 * d],
+            fsal: false,
+        }
+    }
+
+    /// One step of `y = (q, p)` in place: `Φ_{γ_s h} ∘ … ∘ Φ_{γ_1 h}` with
+    /// `Φ_τ = kick(τ/2) ∘ substep(τ) ∘ kick(τ/2)`, adjacent half-kicks merged, the force
+    /// reused from the last step when y is its result. `force(q, out)` writes the force (and
+    /// fails on a non-finite one); `substep(i, τ, q, p)` is the i-th composition node's middle
+    /// flow. Does not allocate.
+    fn step(
+        &mut self,
+        y: &mut [f64],
+        gammas: &[f64],
+        h: f64,
+        what: &'static str,
+        mut force: impl FnMut(&[f64], &mut [f64]) -> Result<()>,
+        mut substep: impl FnMut(usize, f64, &mut [f64], &mut [f64]),
+    ) -> Result<StepReport> {
+        let d = self.q.len();
+        check_state(y, 2 * d, "state (q, p)")?;
+        let mut g_evals = 0;
+        let reuse = self.fsal && same_bits(y, &self.last);
+        self.fsal = false;
+        self.q.copy_from_slice(&y[..d]);
+        self.p.copy_from_slice(&y[d..]);
+        if !reuse {
+            force(&self.q, &mut self.force)?;
+            g_evals += 1;
+        }
+        let mut c = 0.5 * gammas[0];
+        for (i, &g) in gammas.iter().enumerate() {
+            axpy(c * h, &self.force, &mut self.p);
+            substep(i, g * h, &mut self.q, &mut self.p);
+            force(&self.q, &mut self.force)?;
+            g_evals += 1;
+            c = 0.5 * (g + gammas.get(i + 1).copied().unwrap_or(0.0));
+        }
+        axpy(c * h, &self.force, &mut self.p);
+        if !all_finite(&self.q) || !all_finite(&self.p) {
+            return Err(Error::NonFinite(what));
+        }
+        y[..d].copy_from_slice(&self.q);
+        y[d..].copy_from_slice(&self.p);
+        self.last.copy_from_slice(y);
+        self.fsal = true;
+        Ok(StepReport {
+            sweeps: 0,
+            residual: 0.0,
+            g_evals,
+            converged: true,
+        })
+    }
+}
+
 /// Velocity Verlet (Störmer–Verlet, kick–drift–kick) for `q'' = −Ωq − ∇U(q)`, composed to
 /// order 2, 4, 6 or 8 (see [`composition`]); state `y = (q, p)` flat, as [`integrate`]
 /// passes it.
@@ -410,13 +484,8 @@ pub struct StormerVerlet<S: SecondOrderSystem> {
     gammas: &'static [f64],
     h: f64,
     stiffness: Stiffness,
-    q: Vec<f64>,
-    p: Vec<f64>,
-    /// F at the current positions; after a successful step, F at its result (FSAL).
-    force: Vec<f64>,
-    /// The last result (q, p), bit for bit, valid when `fsal`.
-    last: Vec<f64>,
-    fsal: bool,
+    /// (q, p) and F = −Ωq − ∇U(q) (FSAL).
+    state: KickState,
 }
 
 impl<S: SecondOrderSystem> StormerVerlet<S> {
@@ -436,11 +505,7 @@ impl<S: SecondOrderSystem> StormerVerlet<S> {
             gammas,
             h,
             stiffness,
-            q: vec![0.0; d],
-            p: vec![0.0; d],
-            force: vec![0.0; d],
-            last: vec![0.0; 2 * d],
-            fsal: false,
+            state: KickState::new(d),
         })
     }
 
@@ -469,58 +534,26 @@ impl<S: SecondOrderSystem> StormerVerlet<S> {
         Ok(())
     }
 
-    /// `force = −Ωq − ∇U(q)`.
-    fn eval_force(&mut self) -> Result<()> {
-        self.system.force(&self.q, &mut self.force);
-        if !all_finite(&self.force) {
-            return Err(Error::NonFinite("∇U at a Verlet stage"));
-        }
-        self.force.iter_mut().for_each(|f| *f = -*f);
-        self.stiffness.subtract(&self.q, &mut self.force);
-        Ok(())
-    }
-
     /// Advances `y = (q, p)` (length 2d) by one step in place. Does not allocate.
     ///
     /// # Errors
     /// [`Error::DimensionMismatch`] for a wrong length, [`Error::NonFinite`] if y, ∇U at a
     /// stage or the result is NaN/infinite. On error, y is unchanged.
     pub fn step(&mut self, y: &mut [f64]) -> Result<StepReport> {
-        let d = self.q.len();
-        check_state(y, 2 * d, "state (q, p)")?;
-        let h = self.h;
-        let mut g_evals = 0;
-        let reuse = self.fsal && same_bits(y, &self.last);
-        self.fsal = false;
-        self.q.copy_from_slice(&y[..d]);
-        self.p.copy_from_slice(&y[d..]);
-        if !reuse {
-            self.eval_force()?;
-            g_evals += 1;
-        }
-        let s = self.gammas.len();
-        let mut c = 0.5 * self.gammas[0];
-        for i in 0..s {
-            axpy(c * h, &self.force, &mut self.p);
-            axpy(self.gammas[i] * h, &self.p, &mut self.q);
-            self.eval_force()?;
-            g_evals += 1;
-            c = 0.5 * (self.gammas[i] + self.gammas.get(i + 1).copied().unwrap_or(0.0));
-        }
-        axpy(c * h, &self.force, &mut self.p);
-        if !all_finite(&self.q) || !all_finite(&self.p) {
-            return Err(Error::NonFinite("Verlet step result"));
-        }
-        y[..d].copy_from_slice(&self.q);
-        y[d..].copy_from_slice(&self.p);
-        self.last.copy_from_slice(y);
-        self.fsal = true;
-        Ok(StepReport {
-            sweeps: 0,
-            residual: 0.0,
-            g_evals,
-            converged: true,
-        })
+        let (system, stiffness) = (&self.system, &self.stiffness);
+        // F = −Ωq − ∇U(q).
+        let force = |q: &[f64], f: &mut [f64]| {
+            system.force(q, f);
+            if !all_finite(f) {
+                return Err(Error::NonFinite("∇U at a Verlet stage"));
+            }
+            f.iter_mut().for_each(|v| *v = -*v);
+            stiffness.subtract(q, f);
+            Ok(())
+        };
+        let drift = |_: usize, tau: f64, q: &mut [f64], p: &mut [f64]| axpy(tau, p, q);
+        self.state
+            .step(y, self.gammas, self.h, "Verlet step result", force, drift)
     }
 }
 
@@ -568,12 +601,8 @@ pub struct RotationSplitting<S: SecondOrderSystem> {
     omega: Vec<f64>,
     /// Per distinct γ and mode: (cos θ, sin θ/ω, −ω sin θ), θ = γhω (ω = 0: (1, γh, 0)).
     rot: Vec<[f64; 3]>,
-    q: Vec<f64>,
-    p: Vec<f64>,
-    /// −∇U at the current positions; after a successful step, at its result (FSAL).
-    force: Vec<f64>,
-    last: Vec<f64>,
-    fsal: bool,
+    /// (q, p) and −∇U(q) (FSAL).
+    state: KickState,
 }
 
 impl<S: SecondOrderSystem> RotationSplitting<S> {
@@ -607,11 +636,7 @@ impl<S: SecondOrderSystem> RotationSplitting<S> {
             h,
             omega,
             rot: Vec::new(),
-            q: vec![0.0; d],
-            p: vec![0.0; d],
-            force: vec![0.0; d],
-            last: vec![0.0; 2 * d],
-            fsal: false,
+            state: KickState::new(d),
         };
         m.rot = m.rotations(h);
         Ok(m)
@@ -662,62 +687,41 @@ impl<S: SecondOrderSystem> RotationSplitting<S> {
         Ok(())
     }
 
-    /// `force = −∇U(q)`.
-    fn eval_force(&mut self) -> Result<()> {
-        self.system.force(&self.q, &mut self.force);
-        if !all_finite(&self.force) {
-            return Err(Error::NonFinite("∇U at a splitting stage"));
-        }
-        self.force.iter_mut().for_each(|f| *f = -*f);
-        Ok(())
-    }
-
     /// Advances `y = (q, p)` (length 2d) by one step in place. Does not allocate.
     ///
     /// # Errors
     /// [`Error::DimensionMismatch`] for a wrong length, [`Error::NonFinite`] if y, ∇U at a
     /// stage or the result is NaN/infinite. On error, y is unchanged.
     pub fn step(&mut self, y: &mut [f64]) -> Result<StepReport> {
-        let d = self.q.len();
-        check_state(y, 2 * d, "state (q, p)")?;
-        let h = self.h;
-        let mut g_evals = 0;
-        let reuse = self.fsal && same_bits(y, &self.last);
-        self.fsal = false;
-        self.q.copy_from_slice(&y[..d]);
-        self.p.copy_from_slice(&y[d..]);
-        if !reuse {
-            self.eval_force()?;
-            g_evals += 1;
-        }
-        let s = self.gammas.len();
-        let mut c = 0.5 * self.gammas[0];
-        for i in 0..s {
-            axpy(c * h, &self.force, &mut self.p);
-            let rot = &self.rot[self.node[i] * d..(self.node[i] + 1) * d];
-            for ((q, p), r) in self.q.iter_mut().zip(self.p.iter_mut()).zip(rot) {
+        let system = &self.system;
+        // −∇U(q).
+        let force = |q: &[f64], f: &mut [f64]| {
+            system.force(q, f);
+            if !all_finite(f) {
+                return Err(Error::NonFinite("∇U at a splitting stage"));
+            }
+            f.iter_mut().for_each(|v| *v = -*v);
+            Ok(())
+        };
+        let (rot, node) = (&self.rot, &self.node);
+        let d = self.state.q.len();
+        // Rotate each mode by its table entry for the i-th node (τ = γᵢh is in the table).
+        let rotate = |i: usize, _tau: f64, q: &mut [f64], p: &mut [f64]| {
+            let r = &rot[node[i] * d..(node[i] + 1) * d];
+            for ((q, p), r) in q.iter_mut().zip(p.iter_mut()).zip(r) {
                 let (q0, p0) = (*q, *p);
                 *q = r[0] * q0 + r[1] * p0;
                 *p = r[2] * q0 + r[0] * p0;
             }
-            self.eval_force()?;
-            g_evals += 1;
-            c = 0.5 * (self.gammas[i] + self.gammas.get(i + 1).copied().unwrap_or(0.0));
-        }
-        axpy(c * h, &self.force, &mut self.p);
-        if !all_finite(&self.q) || !all_finite(&self.p) {
-            return Err(Error::NonFinite("splitting step result"));
-        }
-        y[..d].copy_from_slice(&self.q);
-        y[d..].copy_from_slice(&self.p);
-        self.last.copy_from_slice(y);
-        self.fsal = true;
-        Ok(StepReport {
-            sweeps: 0,
-            residual: 0.0,
-            g_evals,
-            converged: true,
-        })
+        };
+        self.state.step(
+            y,
+            self.gammas,
+            self.h,
+            "splitting step result",
+            force,
+            rotate,
+        )
     }
 }
 
