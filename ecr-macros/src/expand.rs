@@ -147,12 +147,27 @@ fn stepper_aliases(args: &MethodArgs, rt: &TokenStream, kernel: &Ident) -> Token
             "RKNCrP, for q'' = −∇U(q) (Ω = 0)"
         };
         let doc = format!(
-            " {what}: order {} (r = {r}, s = {s}); stage state allocated once at construction.",
+            " {what}: order {} (r = {r}, s = {s}) for `N` positions known at compile time (state \
+             (q, p) in fixed-size arrays, no heap use per step); the ECrP stepper on the \
+             first-order form.",
+            2 * r
+        );
+        let doc_dyn = format!(
+            " {what}: order {} (r = {r}, s = {s}) for a dimension known at run time; stage state \
+             allocated once at construction.",
             2 * r
         );
         return quote! {
             #[doc = #doc]
-            #vis type #name<Sys> = #rt::second_order::TcStepper<Sys, #kernel>;
+            #vis type #name<Sys, const N: usize> = #rt::second_order::TcStepper<
+                Sys,
+                #kernel,
+                #rt::stepper::StaticBuffers<N, #s, #r, 2>,
+            >;
+
+            #[doc = #doc_dyn]
+            #vis type #dyn_name<Sys> =
+                #rt::second_order::TcStepper<Sys, #kernel, #rt::stepper::VecBuffers>;
         };
     }
     quote! {
@@ -208,14 +223,13 @@ mod tests {
     #[test]
     fn second_order_families() {
         let out = expand_str(parse_quote!(r = 2, family = tc, runtime = ::rt));
-        assert!(
-            out.contains(
-                "type Tc2 < Sys > = :: rt :: second_order :: TcStepper < Sys , Tc2Kernel >"
-            )
-        );
-        assert!(!out.contains("StaticBuffers"));
+        assert!(out.contains(
+            "type Tc2 < Sys , const N : usize > = :: rt :: second_order :: TcStepper < Sys , \
+             Tc2Kernel , :: rt :: stepper :: StaticBuffers < N , 2usize , 2usize , 2 > , >"
+        ));
+        assert!(out.contains("type Tc2Dyn < Sys >"));
         let out = expand_str(parse_quote!(r = 2, family = rknc, runtime = ::rt));
-        assert!(out.contains("type Rknc2 < Sys >"));
+        assert!(out.contains("type Rknc2 < Sys , const N : usize >"));
         // The RKN tableau comes with the RKNC kernel.
         assert!(out.contains("pub const ABAR"));
     }

@@ -40,7 +40,7 @@ impl<K: Kernel, S: System, B: Buffers> Integrator for Stepper<K, S, B> {
     }
 }
 
-impl<S: SecondOrderSystem, K: Kernel> Integrator for TcStepper<S, K> {
+impl<S: SecondOrderSystem, K: Kernel, B: Buffers> Integrator for TcStepper<S, K, B> {
     fn step_size(&self) -> f64 {
         TcStepper::step_size(self)
     }
@@ -48,20 +48,10 @@ impl<S: SecondOrderSystem, K: Kernel> Integrator for TcStepper<S, K> {
         TcStepper::set_step_size(self, h)
     }
     fn step_state(&mut self, y: &mut [f64]) -> Result<StepReport> {
-        let d = self.system().omega().dim();
-        if y.len() != 2 * d {
-            return Err(Error::DimensionMismatch {
-                what: "state (q, p)",
-                expected: 2 * d,
-                found: y.len(),
-            });
-        }
-        let (q, p) = y.split_at_mut(d);
-        self.step(q, p)
+        self.stepper_mut().step(y)
     }
     fn energy_of(&self, y: &[f64]) -> Option<f64> {
-        let d = y.len() / 2;
-        self.system().energy(&y[..d], &y[d..])
+        self.stepper().system().energy(y)
     }
 }
 

@@ -1,29 +1,30 @@
 //! Second-order oscillatory systems q'' + Ωq = −∇U(q) (paper §3) and the trigonometric
-//! collocation stepper TCrP (paper eq. `EEPCr of erkn` with Gauss–Legendre quadrature, in the
-//! moment form of DESIGN.md §2); Ω = 0 gives RKNCrP (eq. `EEPCr of rkn`).
+//! collocation methods TCrP and, for Ω = 0, RKNCrP.
+//!
+//! TCrP is ECrP applied to the first-order form
 //!
 //! ```text
-//! F_k = −Σ_j w_kj f(Q_j)                                         f = ∇U
-//! Q_i = φᵗ₀(Kᵢ) q₀ + cᵢh φᵗ₁(Kᵢ) p₀ + h² Σ_k cᵢ^{k+2} φᵗ_{k+2}(Kᵢ) F_k,      Kᵢ = cᵢ²h²Ω
-//! q₁  = φᵗ₀(K) q₀ + h φᵗ₁(K) p₀ + h² Σ_k φᵗ_{k+2}(K) F_k,                     K = h²Ω
-//! p₁  = −hΩ φᵗ₁(K) q₀ + φᵗ₀(K) p₀ + h Σ_k φᵗ_{k+1}(K) F_k
+//! y = (q, p),   y' = A y + g(y),   A = [[0, I], [−Ω, 0]],   g(y) = (0, −∇U(q)),
 //! ```
 //!
-//! This is ECrP applied to (q, p)' = [[0, I], [−Ω, 0]](q, p) + (0, −f(q)) (tested to agree),
-//! at a fraction of its cost: only positions are iterated, and Ω is handled in its modal
-//! basis (identity for zero, scalar and diagonal Ω; eigenvectors for a dense one), so each
-//! φᵗ-function is a per-mode scalar computed once per step size.
+//! so it runs on the one ECrP stepper ([`Stepper`]) with the [`Oscillator`] operator, whose
+//! banks hold the Legendre kernels of `A` in trigonometric form (three numbers per mode; no
+//! `2n × 2n` matrix for zero, scalar or diagonal Ω, the eigenvectors of a dense one). Written
+//! out with `K = τ²h²Ω` and `φᵗ_m(K) = Σ_l (−K)^l/(2l+m)!` it is the paper's
+//! `q₁ = φᵗ₀(K) q₀ + h φᵗ₁(K) p₀ + h² Σ_k φᵗ_{k+2}(K) F_k`, `p₁ = −hΩφᵗ₁(K) q₀ + φᵗ₀(K) p₀ + h Σ_k
+//! φᵗ_{k+1}(K) F_k` with `F_k = −Σ_j w_kj ∇U(Q_j)`; the stepper evaluates the same method in its
+//! Legendre form, with everything the first-order stepper has: bounded weights for every r,
+//! the compensated update with the propagator in double-double, Newton, the predictor, fused
+//! sweeps for one mode, dense output.
 //!
-//! The φᵗ values come from [`crate::phi::phi_trig`], accurate to a few ulp for every
-//! K = (τhω)² ≥ 0: it picks, per value, between closed forms, the upward recurrence and a
-//! Taylor series by an a-priori error bound (rather than at one fixed switch point), so there
-//! is no loss of digits as hω → 0 and the RKN limit (φᵗ_m(0) = 1/m!) is reached continuously.
+//! [`SecondOrderForm`] turns a [`SecondOrderSystem`] into that [`System`]; [`TcStepper`] is the
+//! stepper on it with positions and momenta as separate slices.
 
-use crate::phi::phi_trig;
+use crate::operator::Oscillator;
 use crate::stepper::{
-    FixedKernel, Kernel, Predictor, RuntimeKernel, SolverSettings, StepReport, SweepLimit,
-    sweeps_converged,
+    Buffers, FixedKernel, Kernel, RuntimeKernel, SolverSettings, StepReport, Stepper, VecBuffers,
 };
+use crate::system::System;
 use crate::{Error, Result};
 use nalgebra::DMatrix;
 
@@ -35,6 +36,8 @@ pub struct Omega {
     lambda: Vec<f64>,
     /// Eigenvectors (columns), for a dense Ω; `None`: the standard basis is modal.
     basis: Option<DMatrix<f64>>,
+    /// The matrix Ω itself, for a dense Ω.
+    matrix: Option<DMatrix<f64>>,
 }
 
 impl Omega {
@@ -44,6 +47,7 @@ impl Omega {
             dim,
             lambda: vec![0.0; dim],
             basis: None,
+            matrix: None,
         }
     }
 
@@ -65,6 +69,7 @@ impl Omega {
             dim: lambda.len(),
             lambda,
             basis: None,
+            matrix: None,
         })
     }
 
@@ -92,7 +97,8 @@ impl Omega {
                 "Ω must be symmetric (max |Ω − Ωᵀ| = {asym:e})"
             )));
         }
-        let eig = nalgebra::SymmetricEigen::new((&omega + omega.transpose()) * 0.5);
+        let omega = (&omega + omega.transpose()) * 0.5;
+        let eig = nalgebra::SymmetricEigen::new(omega.clone());
         let mut lambda: Vec<f64> = eig.eigenvalues.iter().copied().collect();
         check_eigenvalues(&lambda, 1e-12 * scale)?;
         // Round-off may leave tiny negative eigenvalues of a semidefinite Ω: they are zero.
@@ -101,6 +107,7 @@ impl Omega {
             dim: n,
             lambda,
             basis: Some(eig.eigenvectors),
+            matrix: Some(omega),
         })
     }
 
@@ -114,23 +121,28 @@ impl Omega {
         &self.lambda
     }
 
-    /// y = Ω x.
+    /// The eigenvectors (columns) of a dense Ω; `None` for zero, scalar and diagonal Ω, whose
+    /// modes are the coordinates.
+    pub fn basis(&self) -> Option<&DMatrix<f64>> {
+        self.basis.as_ref()
+    }
+
+    /// The (symmetrised) matrix of a dense Ω; `None` for zero, scalar and diagonal Ω.
+    pub fn matrix(&self) -> Option<&DMatrix<f64>> {
+        self.matrix.as_ref()
+    }
+
+    /// y = Ω x. Does not allocate.
     pub fn apply(&self, x: &[f64], y: &mut [f64]) {
-        match &self.basis {
+        match &self.matrix {
             None => y
                 .iter_mut()
                 .zip(x)
                 .zip(&self.lambda)
                 .for_each(|((y, x), l)| *y = l * x),
-            Some(v) => {
-                // Ω x = V Λ Vᵀ x
-                let z: Vec<f64> = (0..self.dim)
-                    .map(|j| {
-                        self.lambda[j] * v.column(j).iter().zip(x).map(|(a, b)| a * b).sum::<f64>()
-                    })
-                    .collect();
+            Some(m) => {
                 for (i, yi) in y.iter_mut().enumerate() {
-                    *yi = (0..self.dim).map(|j| v[(i, j)] * z[j]).sum();
+                    *yi = m.row(i).iter().zip(x).map(|(a, b)| a * b).sum();
                 }
             }
         }
@@ -138,29 +150,14 @@ impl Omega {
 
     /// ½ xᵀΩx.
     pub fn half_quadratic(&self, x: &[f64]) -> f64 {
-        let mut y = vec![0.0; self.dim];
-        self.apply(x, &mut y);
-        0.5 * x.iter().zip(&y).map(|(a, b)| a * b).sum::<f64>()
-    }
-
-    fn physical_to_modal(&self, x: &[f64], out: &mut [f64]) {
-        match &self.basis {
-            None => out.copy_from_slice(x),
-            Some(v) => {
-                for (j, o) in out.iter_mut().enumerate() {
-                    *o = v.column(j).iter().zip(x).map(|(a, b)| a * b).sum();
+        match &self.matrix {
+            None => 0.5 * x.iter().zip(&self.lambda).map(|(v, l)| l * v * v).sum::<f64>(),
+            Some(m) => {
+                let mut sum = 0.0;
+                for (i, xi) in x.iter().enumerate() {
+                    sum += xi * m.row(i).iter().zip(x).map(|(a, b)| a * b).sum::<f64>();
                 }
-            }
-        }
-    }
-
-    fn modal_to_physical(&self, x: &[f64], out: &mut [f64]) {
-        match &self.basis {
-            None => out.copy_from_slice(x),
-            Some(v) => {
-                for (i, o) in out.iter_mut().enumerate() {
-                    *o = (0..self.dim).map(|j| v[(i, j)] * x[j]).sum();
-                }
+                0.5 * sum
             }
         }
     }
@@ -248,73 +245,63 @@ impl<F: Fn(&[f64], &mut [f64]), U: Fn(&[f64]) -> f64> SecondOrderSystem for Seco
     }
 }
 
-/// φᵗ_m(τᵢ²h²λ_l) for every node τᵢ (c₁..c_s, 1), m = 0..=r+1 and mode l: layout
-/// [i][m][l].
-#[derive(Clone, Debug)]
-struct TrigBank {
-    values: Vec<f64>,
-    p: usize,
-    d: usize,
+/// A [`SecondOrderSystem`] in first-order form `y = (q, p)`, `y' = Ay + g(y)` with the
+/// [`Oscillator`] operator `A = [[0, I], [−Ω, 0]]` and `g(y) = (0, −∇U(q))`: a [`System`]
+/// for the ECrP stepper, whose energy is the system's `H(q, p)`.
+pub struct SecondOrderForm<S> {
+    system: S,
+    op: Oscillator,
 }
 
-impl TrigBank {
-    fn new(omega: &Omega, h: f64, taus: &[f64], p: usize) -> Result<Self> {
-        let d = omega.dim();
-        let mut values = vec![0.0; taus.len() * (p + 1) * d];
-        let mut buf = vec![0.0; p + 1];
-        for (i, &t) in taus.iter().enumerate() {
-            for (l, &lam) in omega.lambda.iter().enumerate() {
-                let th = t * h;
-                phi_trig(th * th * lam, &mut buf);
-                for (m, v) in buf.iter().enumerate() {
-                    values[(i * (p + 1) + m) * d + l] = *v;
-                }
-            }
-        }
-        if values.iter().any(|v| !v.is_finite()) {
-            return Err(Error::Numerical(
-                "a trigonometric φ-function is not finite".into(),
+impl<S: SecondOrderSystem> SecondOrderForm<S> {
+    /// The first-order form of `system`.
+    ///
+    /// # Errors
+    /// [`Error::InvalidInput`] if Ω has dimension 0 (there is nothing to integrate).
+    pub fn new(system: S) -> Result<Self> {
+        if system.omega().dim() == 0 {
+            return Err(Error::InvalidInput(
+                "the system has dimension 0 (Ω is 0 × 0): there is nothing to integrate".into(),
             ));
         }
-        Ok(TrigBank { values, p, d })
+        let op = Oscillator::new(system.omega().clone());
+        Ok(SecondOrderForm { system, op })
     }
 
-    #[inline]
-    fn get(&self, i: usize, m: usize) -> &[f64] {
-        let o = (i * (self.p + 1) + m) * self.d;
-        &self.values[o..o + self.d]
+    /// The second-order system.
+    pub fn second_order(&self) -> &S {
+        &self.system
     }
 }
 
-/// TCrP (and RKNCrP for Ω = 0) with run-time r and s ≥ r, for a [`SecondOrderSystem`].
-pub struct TcStepper<S: SecondOrderSystem, K: Kernel = RuntimeKernel> {
-    kernel: K,
-    system: S,
-    settings: SolverSettings,
-    h: f64,
-    bank: TrigBank,
-    /// h τᵢ and h² τᵢ^{k+2} per node (τ = c₁..c_s, 1, and 1 + c₁..1 + c_s with the
-    /// extrapolating predictor): (1 + r) per node.
-    coef: Vec<f64>,
-    q0m: Vec<f64>,
-    p0m: Vec<f64>,
-    /// The modal start (q, p) of the last completed step, for the predictor.
-    prev_q0m: Vec<f64>,
-    prev_p0m: Vec<f64>,
-    /// The last step completed with this h and its start and moments are kept.
-    have_previous: bool,
-    /// The last output (q, p) in physical coordinates, bit for bit, whose exact modal
-    /// coordinates are still in q0m/p0m: continuing from it skips the round trip through a
-    /// numerically orthogonal eigenbasis, which would otherwise add a systematic O(ε) per step.
-    last_q: Vec<f64>,
-    last_p: Vec<f64>,
-    modal_valid: bool,
-    stages: Vec<f64>,
-    new_stages: Vec<f64>,
-    modal: Vec<f64>,
-    f: Vec<f64>,
-    moments: Vec<f64>,
-    moments_m: Vec<f64>,
+impl<S: SecondOrderSystem> System for SecondOrderForm<S> {
+    type Op = Oscillator;
+    fn linear(&self) -> &Oscillator {
+        &self.op
+    }
+    /// `(0, −∇U(q))`.
+    fn nonlinear(&self, y: &[f64], out: &mut [f64], _scratch: &mut [f64]) {
+        let n = y.len() / 2;
+        let (oq, op) = out.split_at_mut(n);
+        oq.fill(0.0);
+        self.system.force(&y[..n], op);
+        op.iter_mut().for_each(|v| *v = -*v);
+    }
+    fn energy(&self, y: &[f64]) -> Option<f64> {
+        let n = y.len() / 2;
+        self.system.energy(&y[..n], &y[n..])
+    }
+}
+
+/// TCrP (RKNCrP for Ω = 0) with kernel `K` (run-time r, or emitted by
+/// `ecr_method!(family = tc | rknc)`) and stage storage `B`: the ECrP [`Stepper`] on the
+/// [`SecondOrderForm`] of the system, stepping positions and momenta given as separate
+/// slices.
+pub struct TcStepper<S: SecondOrderSystem, K: Kernel = RuntimeKernel, B: Buffers = VecBuffers> {
+    inner: Stepper<K, SecondOrderForm<S>, B>,
+    /// The state (q, p) handed to the stepper, kept between steps so that its compensated
+    /// update and predictor see the state they produced.
+    y: Vec<f64>,
 }
 
 impl<S: SecondOrderSystem> TcStepper<S> {
@@ -329,7 +316,8 @@ impl<S: SecondOrderSystem> TcStepper<S> {
     /// TCrP with r moments, s ≥ r Gauss–Legendre points, step h and solver settings.
     ///
     /// # Errors
-    /// [`Error::InvalidParameter`] for r, s or settings, [`Error::InvalidStepSize`] for h.
+    /// [`Error::InvalidParameter`] for r, s or settings, [`Error::InvalidStepSize`] for h,
+    /// and as [`TcStepper::from_kernel`].
     pub fn with_nodes(
         system: S,
         r: usize,
@@ -337,11 +325,12 @@ impl<S: SecondOrderSystem> TcStepper<S> {
         h: f64,
         settings: SolverSettings,
     ) -> Result<Self> {
+        settings.validate()?;
         Self::from_kernel(RuntimeKernel::new(r, s)?, system, h, settings)
     }
 }
 
-impl<S: SecondOrderSystem, K: FixedKernel> TcStepper<S, K> {
+impl<S: SecondOrderSystem, K: FixedKernel, B: Buffers> TcStepper<S, K, B> {
     /// The fixed-order stepper (kernel emitted by `ecr_method!(family = tc | rknc, …)`) with
     /// default solver settings.
     ///
@@ -352,276 +341,82 @@ impl<S: SecondOrderSystem, K: FixedKernel> TcStepper<S, K> {
     }
 }
 
-impl<S: SecondOrderSystem, K: Kernel> TcStepper<S, K> {
+impl<S: SecondOrderSystem, K: Kernel, B: Buffers> TcStepper<S, K, B> {
     /// A stepper from a kernel (run-time or emitted by `ecr_method!`).
     ///
     /// # Errors
-    /// [`Error::InvalidParameter`] for bad settings, [`Error::InvalidStepSize`] for h,
-    /// [`Error::InvalidInput`] for Ω of dimension 0.
+    /// [`Error::InvalidInput`] for Ω of dimension 0, otherwise as
+    /// [`Stepper::from_kernel`].
     pub fn from_kernel(kernel: K, system: S, h: f64, settings: SolverSettings) -> Result<Self> {
-        settings.validate()?;
-        settings.require_fixed_point("TcStepper")?;
-        let (r, s, d) = (kernel.r(), kernel.s(), system.omega().dim());
-        if d == 0 {
-            return Err(Error::InvalidInput(
-                "the system has dimension 0 (Ω is 0 × 0): there is nothing to integrate".into(),
-            ));
-        }
-        let (bank, coef) = Self::build(&system, &kernel, h, settings.predictor)?;
+        let form = SecondOrderForm::new(system)?;
+        let d = form.dim();
         Ok(TcStepper {
-            kernel,
-            system,
-            settings,
-            h,
-            bank,
-            coef,
-            q0m: vec![0.0; d],
-            p0m: vec![0.0; d],
-            prev_q0m: vec![0.0; d],
-            prev_p0m: vec![0.0; d],
-            have_previous: false,
-            last_q: vec![0.0; d],
-            last_p: vec![0.0; d],
-            modal_valid: false,
-            stages: vec![0.0; s * d],
-            new_stages: vec![0.0; s * d],
-            modal: vec![0.0; d],
-            f: vec![0.0; s * d],
-            moments: vec![0.0; r * d],
-            moments_m: vec![0.0; r * d],
+            inner: Stepper::from_kernel(kernel, form, h, settings)?,
+            y: vec![0.0; d],
         })
-    }
-
-    fn build(system: &S, kernel: &K, h: f64, predictor: Predictor) -> Result<(TrigBank, Vec<f64>)> {
-        if !(h.is_finite() && h > 0.0) {
-            return Err(Error::InvalidStepSize(h));
-        }
-        let r = kernel.r();
-        let mut taus = kernel.nodes().to_vec();
-        taus.push(1.0);
-        if predictor == Predictor::Extrapolate {
-            taus.extend(kernel.nodes().iter().map(|c| 1.0 + c));
-        }
-        let bank = TrigBank::new(system.omega(), h, &taus, r + 1)?;
-        let coef = taus
-            .iter()
-            .flat_map(|&t| {
-                std::iter::once(h * t).chain((0..r).map(move |k| h * h * t.powi(k as i32 + 2)))
-            })
-            .collect();
-        Ok((bank, coef))
     }
 
     /// The step size.
     pub fn step_size(&self) -> f64 {
-        self.h
+        self.inner.step_size()
     }
 
-    /// The system.
+    /// The second-order system.
     pub fn system(&self) -> &S {
-        &self.system
+        self.inner.system().second_order()
     }
 
-    /// Changes the step size (rebuilds the φᵗ bank).
+    /// The ECrP stepper on the first-order form (state y = (q, p)).
+    pub fn stepper(&self) -> &Stepper<K, SecondOrderForm<S>, B> {
+        &self.inner
+    }
+
+    /// The ECrP stepper on the first-order form, mutably: [`Stepper::step`] advances the
+    /// concatenated state y = (q, p) without the copies of [`step`](Self::step).
+    pub fn stepper_mut(&mut self) -> &mut Stepper<K, SecondOrderForm<S>, B> {
+        &mut self.inner
+    }
+
+    /// Changes the step size (rebuilds the kernel bank).
     ///
     /// # Errors
-    /// [`Error::InvalidStepSize`].
+    /// As [`Stepper::set_step_size`].
     pub fn set_step_size(&mut self, h: f64) -> Result<()> {
-        if h != self.h {
-            let (bank, coef) = Self::build(&self.system, &self.kernel, h, self.settings.predictor)?;
-            self.bank = bank;
-            self.coef = coef;
-            self.h = h;
-            self.have_previous = false;
-        }
-        Ok(())
-    }
-
-    /// Positions of stage i in modal coordinates into `out`:
-    /// φᵗ₀ q₀ + hτ φᵗ₁ p₀ − Σ_k h²τ^{k+2} φᵗ_{k+2} M_k (M = Σ_j w_kj f_j, modal), from the
-    /// current step's start (or, for the predictor nodes i > s, the previous step's).
-    fn stage_modal(&self, i: usize, out: &mut [f64]) {
-        let (r, d) = (self.kernel.r(), out.len());
-        let (q0m, p0m) = if i > self.kernel.s() {
-            (&self.prev_q0m, &self.prev_p0m)
-        } else {
-            (&self.q0m, &self.p0m)
-        };
-        let c = &self.coef[i * (r + 1)..(i + 1) * (r + 1)];
-        let (t0, t1) = (self.bank.get(i, 0), self.bank.get(i, 1));
-        for l in 0..d {
-            out[l] = t0[l] * q0m[l] + c[0] * t1[l] * p0m[l];
-        }
-        for k in 0..r {
-            let tk = self.bank.get(i, k + 2);
-            let mk = &self.moments_m[k * d..(k + 1) * d];
-            for l in 0..d {
-                out[l] -= c[k + 1] * tk[l] * mk[l];
-            }
-        }
-    }
-
-    fn eval_f(&mut self, j: usize) -> Result<()> {
-        let d = self.q0m.len();
-        let out = &mut self.f[j * d..(j + 1) * d];
-        self.system.force(&self.stages[j * d..(j + 1) * d], out);
-        if out.iter().any(|v| !v.is_finite()) {
-            return Err(Error::NonFinite("f(Q) at a stage"));
-        }
-        Ok(())
-    }
-
-    fn update_moments(&mut self) {
-        let (r, d) = (self.kernel.r(), self.q0m.len());
-        self.kernel.moments(&self.f, &mut self.moments, d);
-        for k in 0..r {
-            let (src, dst) = (
-                &self.moments[k * d..(k + 1) * d],
-                &mut self.moments_m[k * d..(k + 1) * d],
-            );
-            self.system.omega().physical_to_modal(src, dst);
-        }
+        self.inner.set_step_size(h)
     }
 
     /// Advances (q, p) by one step in place. Allocation-free.
     ///
     /// # Errors
-    /// [`Error::DimensionMismatch`], [`Error::NonFinite`] (input or force),
-    /// [`Error::NoConvergence`] as for [`crate::stepper::Stepper::step`]. On error, (q, p) are
-    /// unchanged.
+    /// [`Error::DimensionMismatch`] for slices of the wrong length, otherwise as
+    /// [`Stepper::step`]. On error, (q, p) are unchanged.
     pub fn step(&mut self, q: &mut [f64], p: &mut [f64]) -> Result<StepReport> {
-        let d = self.q0m.len();
-        let (r, s) = (self.kernel.r(), self.kernel.s());
+        let n = self.y.len() / 2;
         for (what, x) in [("position q", &*q), ("momentum p", &*p)] {
-            if x.len() != d {
+            if x.len() != n {
                 return Err(Error::DimensionMismatch {
                     what,
-                    expected: d,
+                    expected: n,
                     found: x.len(),
                 });
             }
-            if x.iter().any(|v| !v.is_finite()) {
-                return Err(Error::NonFinite(what));
-            }
         }
-        let omega = self.system.omega();
-        let same = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits());
-        let continuing = self.modal_valid && same(q, &self.last_q) && same(p, &self.last_p);
-        if !continuing {
-            omega.physical_to_modal(q, &mut self.q0m);
-            omega.physical_to_modal(p, &mut self.p0m);
-        }
-        self.modal_valid = false;
-        let extrapolate = std::mem::take(&mut self.have_previous)
-            && continuing
-            && self.settings.predictor == Predictor::Extrapolate;
-        let mut g_evals;
-        if extrapolate {
-            // Start: the previous step's continuous solution at τ = 1 + cᵢ (its modal start
-            // and moments are still held).
-            let mut modal = std::mem::take(&mut self.modal);
-            let mut stages = std::mem::take(&mut self.stages);
-            for i in 0..s {
-                self.stage_modal(s + 1 + i, &mut modal);
-                self.system
-                    .omega()
-                    .modal_to_physical(&modal, &mut stages[i * d..(i + 1) * d]);
-            }
-            self.modal = modal;
-            self.stages = stages;
-            for j in 0..s {
-                self.eval_f(j)?;
-            }
-            g_evals = s;
-        } else {
-            for j in 0..s {
-                self.stages[j * d..(j + 1) * d].copy_from_slice(q);
-            }
-            self.eval_f(0)?;
-            for j in 1..s {
-                let (first, rest) = self.f.split_at_mut(j * d);
-                rest[..d].copy_from_slice(&first[..d]);
-            }
-            g_evals = 1;
-        }
-        let (mut sweeps, mut previous) = (0, f64::INFINITY);
-        let (residual, converged) = loop {
-            self.update_moments();
-            let mut modal = std::mem::take(&mut self.modal);
-            let mut new_stages = std::mem::take(&mut self.new_stages);
-            for i in 0..s {
-                self.stage_modal(i, &mut modal);
-                self.system
-                    .omega()
-                    .modal_to_physical(&modal, &mut new_stages[i * d..(i + 1) * d]);
-            }
-            self.modal = modal;
-            let (mut diff, mut mag) = (0.0f64, 1.0f64);
-            for (a, b) in new_stages.iter().zip(&self.stages) {
-                diff = diff.max((a - b).abs());
-                mag = mag.max(a.abs());
-            }
-            self.new_stages = std::mem::replace(&mut self.stages, new_stages);
-            let residual = diff / mag;
-            sweeps += 1;
-            for j in 0..s {
-                self.eval_f(j)?;
-            }
-            g_evals += s;
-            if !residual.is_finite() {
-                return Err(crate::stepper::stages_fault(previous));
-            }
-            if sweeps_converged(residual, previous, self.settings.tolerance) {
-                break (residual, true);
-            }
-            if sweeps >= self.settings.max_sweeps {
-                break (residual, false);
-            }
-            previous = residual;
-        };
-        if !converged && self.settings.on_limit == SweepLimit::Error {
-            return Err(Error::NoConvergence {
-                sweeps,
-                residual,
-                tolerance: self.settings.tolerance,
-            });
-        }
-        self.update_moments();
-        // q₁ (modal) into `modal`, p₁ (modal) into new_stages[..d] as scratch.
-        let mut modal = std::mem::take(&mut self.modal);
-        self.stage_modal(s, &mut modal);
-        let (t0, t1) = (self.bank.get(s, 0), self.bank.get(s, 1));
-        let lam = self.system.omega().eigenvalues();
-        let h = self.h;
-        let pm = &mut self.new_stages[..d];
-        for l in 0..d {
-            pm[l] = -h * lam[l] * t1[l] * self.q0m[l] + t0[l] * self.p0m[l];
-        }
-        for k in 0..r {
-            let tk = self.bank.get(s, k + 1);
-            let mk = &self.moments_m[k * d..(k + 1) * d];
-            for l in 0..d {
-                pm[l] -= h * tk[l] * mk[l];
-            }
-        }
-        let omega = self.system.omega();
-        omega.modal_to_physical(&modal, q);
-        omega.modal_to_physical(&self.new_stages[..d], p);
-        std::mem::swap(&mut self.q0m, &mut self.prev_q0m);
-        std::mem::swap(&mut self.p0m, &mut self.prev_p0m);
-        self.q0m.copy_from_slice(&modal);
-        self.p0m.copy_from_slice(&self.new_stages[..d]);
-        self.have_previous = true;
-        self.last_q.copy_from_slice(q);
-        self.last_p.copy_from_slice(p);
-        self.modal_valid = true;
-        self.modal = modal;
-        Ok(StepReport {
-            sweeps,
-            residual,
-            g_evals,
-            converged,
-        })
+        let (yq, yp) = self.y.split_at_mut(n);
+        yq.copy_from_slice(q);
+        yp.copy_from_slice(p);
+        let report = self.inner.step(&mut self.y)?;
+        q.copy_from_slice(&self.y[..n]);
+        p.copy_from_slice(&self.y[n..]);
+        Ok(report)
+    }
+
+    /// Dense output (q, p) of the last step at τ ∈ [0, 1], concatenated (see
+    /// [`Stepper::dense_output`]).
+    ///
+    /// # Errors
+    /// As [`Stepper::dense_output`].
+    pub fn dense_output(&self, tau: f64) -> Result<Vec<f64>> {
+        self.inner.dense_output(tau)
     }
 }
 

@@ -482,22 +482,27 @@ impl Buffers for VecBuffers {
     }
 }
 
-/// Fixed-size buffers for dimension `D`, `S` stages and `R` moments: what a step hands on (y₀,
-/// the moments, the end state and its rounding error) in arrays inside the stepper, the stage
-/// state in arrays on the stack of each step (see [`Buffers::with_parts`]); no heap.
+/// Fixed-size buffers for dimension `B·D` (B blocks of D: `B = 2` holds the state (q, p) of a
+/// second-order system with D positions), `S` stages and `R` moments: what a step hands on
+/// (y₀, the moments, the end state and its rounding error) in arrays inside the stepper, the
+/// stage state in arrays on the stack of each step (see [`Buffers::with_parts`]); no heap.
 #[derive(Clone, Debug)]
-pub struct StaticBuffers<const D: usize, const S: usize, const R: usize> {
-    y0: [f64; D],
-    moments: [[f64; D]; R],
-    last: [f64; D],
-    comp: [f64; D],
+pub struct StaticBuffers<const D: usize, const S: usize, const R: usize, const B: usize = 1> {
+    y0: [[f64; D]; B],
+    moments: [[[f64; D]; B]; R],
+    last: [[f64; D]; B],
+    comp: [[f64; D]; B],
 }
 
-impl<const D: usize, const S: usize, const R: usize> Buffers for StaticBuffers<D, S, R> {
+impl<const D: usize, const S: usize, const R: usize, const B: usize> Buffers
+    for StaticBuffers<D, S, R, B>
+{
     fn with_sizes(r: usize, s: usize, d: usize) -> Result<Self> {
-        for (what, expected, found) in
-            [("dimension", D, d), ("stages s", S, s), ("moments r", R, r)]
-        {
+        for (what, expected, found) in [
+            ("dimension", B * D, d),
+            ("stages s", S, s),
+            ("moments r", R, r),
+        ] {
             if expected != found {
                 return Err(Error::DimensionMismatch {
                     what,
@@ -507,44 +512,44 @@ impl<const D: usize, const S: usize, const R: usize> Buffers for StaticBuffers<D
             }
         }
         Ok(StaticBuffers {
-            y0: [0.0; D],
-            moments: [[0.0; D]; R],
-            last: [0.0; D],
-            comp: [0.0; D],
+            y0: [[0.0; D]; B],
+            moments: [[[0.0; D]; B]; R],
+            last: [[0.0; D]; B],
+            comp: [[0.0; D]; B],
         })
     }
     fn dim(&self) -> usize {
-        D
+        B * D
     }
     #[inline(always)]
     fn with_parts<R2>(&mut self, f: impl FnOnce(BufferParts<'_>) -> R2) -> R2 {
-        let mut stages = [[0.0; D]; S];
-        let mut new_stages = [[0.0; D]; S];
-        let mut props = [[0.0; D]; S];
-        let mut g = [[0.0; D]; S];
-        let mut tmp = [[0.0; D]; 3];
+        let mut stages = [[[0.0; D]; B]; S];
+        let mut new_stages = [[[0.0; D]; B]; S];
+        let mut props = [[[0.0; D]; B]; S];
+        let mut g = [[[0.0; D]; B]; S];
+        let mut tmp = [[[0.0; D]; B]; 3];
         f(BufferParts {
-            y0: &mut self.y0,
-            stages: stages.as_flattened_mut(),
-            new_stages: new_stages.as_flattened_mut(),
-            props: props.as_flattened_mut(),
-            g: g.as_flattened_mut(),
-            moments: self.moments.as_flattened_mut(),
-            last: &mut self.last,
-            comp: &mut self.comp,
-            tmp: tmp.as_flattened_mut(),
+            y0: self.y0.as_flattened_mut(),
+            stages: stages.as_flattened_mut().as_flattened_mut(),
+            new_stages: new_stages.as_flattened_mut().as_flattened_mut(),
+            props: props.as_flattened_mut().as_flattened_mut(),
+            g: g.as_flattened_mut().as_flattened_mut(),
+            moments: self.moments.as_flattened_mut().as_flattened_mut(),
+            last: self.last.as_flattened_mut(),
+            comp: self.comp.as_flattened_mut(),
+            tmp: tmp.as_flattened_mut().as_flattened_mut(),
         })
     }
     const LOCAL_STAGES: bool = true;
     fn y0(&self) -> &[f64] {
-        &self.y0
+        self.y0.as_flattened()
     }
     fn moments(&self) -> &[f64] {
-        self.moments.as_flattened()
+        self.moments.as_flattened().as_flattened()
     }
     #[inline(always)]
     fn fused_sweep(mats: &[f64], props: &[f64], g: &[f64], out: &mut [f64], _: usize, _: usize) {
-        apply_stage_matrices(mats, props, g, out, S, D);
+        apply_stage_matrices(mats, props, g, out, S, B * D);
     }
 }
 
@@ -655,15 +660,17 @@ pub fn stage_matrices<K: Kernel, Bk: PhiBank>(
 /// The most entries (`s²d²`) the fused stage matrices may have: 8 MiB.
 pub const FUSED_MAX_ENTRIES: usize = 1 << 20;
 
-/// Whether ECrP fuses its sweeps for this bank: the bank multiplies dense matrices
-/// ([`PhiBank::dense_matrices`]) and the fused sweep, `s²d²` multiply-adds, costs no more than
-/// the moments and `combine`, `s(r+1)d² + rsd` (i.e. `sd ≤ (r+1)d + r`: s = r or r + 1 for
-/// most d), within [`FUSED_MAX_ENTRIES`].
+/// Whether ECrP fuses its sweeps for this bank: the bank states the cost of its `combine`
+/// ([`PhiBank::combine_cost`]: dense matrices, or the 2 × 2 block of a one-mode oscillator),
+/// and the fused sweep, `s²d²` multiply-adds, costs no more than the moments and `combine`,
+/// `rsd + s · cost` (dense: `sd ≤ (r+1)d + r`, i.e. s = r or r + 1 for most d), within
+/// [`FUSED_MAX_ENTRIES`].
 pub fn fuses_stages<Bk: PhiBank>(bank: &Bk, r: usize, s: usize) -> bool {
     let d = bank.dim();
-    bank.dense_matrices()
-        && s * d <= (r + 1) * d + r
-        && s.saturating_mul(s).saturating_mul(d).saturating_mul(d) <= FUSED_MAX_ENTRIES
+    let fused = s.saturating_mul(s).saturating_mul(d).saturating_mul(d);
+    bank.combine_cost(r).is_some_and(|c| {
+        fused <= s.saturating_mul(c).saturating_add(r * s * d) && fused <= FUSED_MAX_ENTRIES
+    })
 }
 
 /// The fused sweep: `out_i = props_i + Σ_k M_ik g_k` for i < s, with the stage matrices of

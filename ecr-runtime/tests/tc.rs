@@ -224,11 +224,12 @@ fn macro_tc_and_rknc_steppers_equal_the_run_time_stepper() {
     for (omega, r, s) in cases {
         let sys = SecondOrder::new(omega, coupled_force);
         let h = 0.02;
-        let mut rt = TcStepper::with_nodes(&sys, r, s, h, SolverSettings::default()).unwrap();
-        let (mut q1, mut p1) = (vec![0.3, -0.2, 0.5], vec![0.1, 0.4, -0.3]);
-        let (mut q2, mut p2) = (q1.clone(), p1.clone());
         macro_rules! run {
             ($ty:ty) => {{
+                let mut rt =
+                    TcStepper::with_nodes(&sys, r, s, h, SolverSettings::default()).unwrap();
+                let (mut q1, mut p1) = (vec![0.3, -0.2, 0.5], vec![0.1, 0.4, -0.3]);
+                let (mut q2, mut p2) = (q1.clone(), p1.clone());
                 let mut st: $ty = <$ty>::fixed(&sys, h).unwrap();
                 for n in 0..300 {
                     st.step(&mut q1, &mut p1).unwrap();
@@ -238,10 +239,20 @@ fn macro_tc_and_rknc_steppers_equal_the_run_time_stepper() {
                 }
             }};
         }
+        // Fixed-size (N = 3 positions) and run-time-size storage.
         match (r, s) {
-            (3, 3) => run!(fixed::Tc3<_>),
-            (2, 4) => run!(fixed::Rknc2S4<_>),
-            _ => run!(fixed::Tc5Wide<_>),
+            (3, 3) => {
+                run!(fixed::Tc3<_, 3>);
+                run!(fixed::Tc3Dyn<_>);
+            }
+            (2, 4) => {
+                run!(fixed::Rknc2S4<_, 3>);
+                run!(fixed::Rknc2S4Dyn<_>);
+            }
+            _ => {
+                run!(fixed::Tc5Wide<_, 3>);
+                run!(fixed::Tc5WideDyn<_>);
+            }
         }
     }
 }

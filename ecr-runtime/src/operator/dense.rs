@@ -17,7 +17,7 @@ use crate::storage::ensure_allocatable;
 use crate::{Error, Result};
 
 /// `hi + lo = (Mh + Ml) x` in double-double (Dot2 on the high part), without allocation.
-fn matvec_dd<R: nalgebra::Dim, C: nalgebra::Dim, S: nalgebra::RawStorage<f64, R, C>>(
+pub(super) fn matvec_dd<R: nalgebra::Dim, C: nalgebra::Dim, S: nalgebra::RawStorage<f64, R, C>>(
     mh: &nalgebra::Matrix<f64, R, C, S>,
     ml: &nalgebra::Matrix<f64, R, C, S>,
     x: &[f64],
@@ -42,7 +42,7 @@ fn matvec_dd<R: nalgebra::Dim, C: nalgebra::Dim, S: nalgebra::RawStorage<f64, R,
 
 /// `y = M x` (or `y = α M x + β y`) on slices, without allocation.
 #[inline]
-fn gemv(y: &mut [f64], alpha: f64, m: &DMatrix<f64>, x: &[f64], beta: f64) {
+pub(super) fn gemv(y: &mut [f64], alpha: f64, m: &DMatrix<f64>, x: &[f64], beta: f64) {
     let n = x.len();
     let mut yv = DVectorViewMut::from_slice(y, m.nrows());
     yv.gemv(alpha, m, &DVectorView::from_slice(x, n), beta);
@@ -50,7 +50,7 @@ fn gemv(y: &mut [f64], alpha: f64, m: &DMatrix<f64>, x: &[f64], beta: f64) {
 
 /// `y = Mᵀ x` on slices, without allocation.
 #[inline]
-fn gemv_tr(y: &mut [f64], m: &DMatrix<f64>, x: &[f64]) {
+pub(super) fn gemv_tr(y: &mut [f64], m: &DMatrix<f64>, x: &[f64]) {
     let n = x.len();
     let mut yv = DVectorViewMut::from_slice(y, m.ncols());
     yv.gemv_tr(1.0, m, &DVectorView::from_slice(x, n), 0.0);
@@ -219,8 +219,9 @@ impl PhiBank for DenseBank {
         }
     }
 
-    fn dense_matrices(&self) -> bool {
-        true
+    fn combine_cost(&self, m: usize) -> Option<usize> {
+        let d = self.dim();
+        Some((m + 1) * d * d)
     }
 
     fn propagate_dd(&self, i: usize, y0: &[f64], hi: &mut [f64], lo: &mut [f64]) -> bool {
@@ -388,8 +389,9 @@ impl<const D: usize> PhiBank for DenseStaticBank<D> {
         }
     }
 
-    fn dense_matrices(&self) -> bool {
-        true
+    fn combine_cost(&self, m: usize) -> Option<usize> {
+        let d = self.dim();
+        Some((m + 1) * d * d)
     }
 
     fn propagate_dd(&self, i: usize, y0: &[f64], hi: &mut [f64], lo: &mut [f64]) -> bool {

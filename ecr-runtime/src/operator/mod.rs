@@ -39,6 +39,7 @@
 mod circulant;
 mod circulant2d;
 mod dense;
+mod oscillator;
 mod simple;
 mod skew;
 
@@ -52,6 +53,7 @@ pub use dense::{
     Dense, DenseBank, DenseStatic, DenseStaticBank, EigenBasis, Symmetric, SymmetricBank,
     SymmetricWorkspace,
 };
+pub use oscillator::{Oscillator, OscillatorBank, OscillatorWorkspace};
 pub use simple::{Diagonal, DiagonalBank, Scalar, ScalarBank, Zero, ZeroBank};
 pub use skew::{SkewGenerator, SkewPair, SkewPairBank, SkewPairWorkspace, SpectralBasis};
 
@@ -252,12 +254,14 @@ pub trait PhiBank {
         false
     }
 
-    /// `true` if the bank holds its functions as dense `d × d` matrices, so that
-    /// [`combine`](Self::combine) costs `O(d²)` per term ([`Dense`], [`DenseStatic`]). The
-    /// ECrP stepper then fuses its moments and kernels into stage matrices where that is
-    /// cheaper ([`fuses_stages`](crate::stepper::fuses_stages)). Default `false`.
-    fn dense_matrices(&self) -> bool {
-        false
+    /// The multiply-adds of one output block of [`combine`](Self::combine) with `m` g-blocks,
+    /// for banks whose `combine` is simple enough that the ECrP stepper may replace its sweeps
+    /// by fused stage matrices when those cost no more
+    /// ([`fuses_stages`](crate::stepper::fuses_stages)); `None` (the default): never fuse.
+    /// Dense banks: `(m + 1) d²`.
+    fn combine_cost(&self, m: usize) -> Option<usize> {
+        let _ = m;
+        None
     }
 
     /// `out = φ_k(τ_i h A) x`. Does not allocate.
