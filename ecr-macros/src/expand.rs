@@ -32,7 +32,7 @@ fn runtime_path(args: &MethodArgs) -> TokenStream {
 }
 
 /// The unrolled moment accumulation m_k = 0.0 + Σ_j C[k][j] g_j (left to right, as the
-/// run-time kernel rounds) over the constant table `C` (`W` or `LW`).
+/// run-time kernel rounds) over the constant table `C` (`LW`).
 fn moments_body(r: usize, s: usize, table: &Ident) -> TokenStream {
     let loads = (0..s).map(|j| {
         let gj = format_ident!("__ecr_g{}", j);
@@ -66,7 +66,6 @@ pub fn expand(args: &MethodArgs) -> syn::Result<TokenStream> {
         .map_err(|e| syn::Error::new(Span::call_site(), e.to_string()))?;
     let rt = runtime_path(args);
     let kernel = format_ident!("{}Kernel", name);
-    let moments = moments_body(r, s, &format_ident!("W"));
     let legendre_moments = moments_body(r, s, &format_ident!("LW"));
     let stages = (0..s).map(|j| quote!(__ecr_f(#j)?;));
     let method = match args.family {
@@ -102,11 +101,6 @@ pub fn expand(args: &MethodArgs) -> syn::Result<TokenStream> {
             #[inline]
             fn nodes(&self) -> &[f64] {
                 &Self::NODES
-            }
-            #[inline(always)]
-            #[allow(clippy::identity_op, clippy::erasing_op)]
-            fn moments(&self, __ecr_g: &[f64], __ecr_m: &mut [f64], __ecr_d: usize) {
-                #moments
             }
             #[inline(always)]
             #[allow(clippy::identity_op, clippy::erasing_op)]
@@ -202,7 +196,6 @@ mod tests {
         // Constants emitted bit-exactly.
         assert!(out.contains("0.2113248654051871f64"));
         // Unrolled moments: W[1][1] appears, no loop over j.
-        assert!(out.contains("Self :: W [1usize] [1usize] * __ecr_g1"));
         assert!(out.contains("Self :: LW [1usize] [1usize] * __ecr_g1"));
         assert!(out.contains("__ecr_f (1usize) ?"));
     }

@@ -294,12 +294,9 @@ pub trait Kernel {
     fn s(&self) -> usize;
     /// The nodes c₁..c_s.
     fn nodes(&self) -> &[f64];
-    /// The φ-form moments m[k·d..(k+1)·d] = Σ_j w_kj g[j·d..(j+1)·d], k < r (TCrP, RKNCrP),
-    /// each sum accumulated from 0.0 in the order j = 0, 1, … (so that every kernel rounds
-    /// identically).
-    fn moments(&self, g: &[f64], m: &mut [f64], d: usize);
     /// The Legendre moments m[k·d..(k+1)·d] = Σ_j ℓ_kj g[j·d..(j+1)·d], ℓ_kj = b_j P̃_k(c_j),
-    /// k < r (ECrP), accumulated as [`moments`](Self::moments).
+    /// k < r, each sum accumulated from 0.0 in the order j = 0, 1, … (so that every kernel
+    /// rounds identically).
     fn legendre_moments(&self, g: &[f64], m: &mut [f64], d: usize);
     /// Calls `f(j)` for j = 0..s in order, stopping at the first error.
     fn each_stage<F: FnMut(usize) -> Result<()>>(&self, mut f: F) -> Result<()> {
@@ -352,9 +349,6 @@ impl Kernel for RuntimeKernel {
     }
     fn nodes(&self) -> &[f64] {
         &self.0.nodes
-    }
-    fn moments(&self, g: &[f64], m: &mut [f64], d: usize) {
-        accumulate(&self.0.w, self.0.r, self.0.s, g, m, d);
     }
     fn legendre_moments(&self, g: &[f64], m: &mut [f64], d: usize) {
         accumulate(&self.0.lw, self.0.r, self.0.s, g, m, d);

@@ -29,10 +29,16 @@ unsafe impl GlobalAlloc for Counting {
 #[global_allocator]
 static GLOBAL: Counting = Counting;
 
+/// The tests of this file run one at a time: the counter is global, and another test's
+/// set-up must not be counted.
+static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 ecr_method!(r = 3);
+ecr_method!(r = 3, family = tc);
 
 #[test]
 fn steps_allocate_nothing() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let (omega, k) = (5.0_f64, 0.07_f64);
     let a = SMatrix::<f64, 2, 2>::new(0.0, 1.0, -(omega * omega + k * k), 0.0);
     let g = move |y: &[f64], out: &mut [f64]| {
@@ -53,4 +59,30 @@ fn steps_allocate_nothing() {
     let after = ALLOCATIONS.load(Ordering::SeqCst);
     assert_eq!(after - before, 0, "heap allocations during 2000 steps");
     assert_eq!(y, z);
+}
+
+#[test]
+fn second_order_steps_allocate_nothing() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    use ecr_runtime::problems::Fpu;
+    use ecr_runtime::second_order::{Omega, SecondOrder, TcStepper};
+    // One mode (fused sweeps, fixed-size storage) and six modes (the oscillator bank's
+    // combine, run-time storage).
+    let k2 = 0.07_f64 * 0.07;
+    let sys = SecondOrder::new(
+        Omega::scalar(25.0 + k2, 1).unwrap(),
+        move |q: &[f64], f: &mut [f64]| f[0] = -2.0 * k2 * q[0].powi(3),
+    );
+    let mut fixed: Tc3<_, 1> = Tc3::fixed(&sys, 0.01).unwrap();
+    let fpu = Fpu::new(3, 50.0).unwrap();
+    let mut chain = TcStepper::new(fpu.system().unwrap(), 3, 0.01).unwrap();
+    let (mut q, mut p) = ([0.0], [5.0]);
+    let (mut qc, mut pc) = fpu.initial_value();
+    let before = ALLOCATIONS.load(Ordering::SeqCst);
+    for _ in 0..1000 {
+        fixed.step(&mut q, &mut p).unwrap();
+        chain.step(&mut qc, &mut pc).unwrap();
+    }
+    let after = ALLOCATIONS.load(Ordering::SeqCst);
+    assert_eq!(after - before, 0, "heap allocations during 2000 steps");
 }
