@@ -1,5 +1,6 @@
 //! A step of a fixed-order stepper with static dimension allocates nothing: counted by a
-//! global allocator wrapper. (One test in this binary, so no other thread allocates meanwhile.)
+//! global allocator wrapper, per thread (the test harness allocates on its own threads while a
+//! test runs).
 
 use ecr_runtime::ecr_method;
 use ecr_runtime::operator::DenseStatic;
@@ -7,21 +8,42 @@ use ecr_runtime::stepper::EcStepper;
 use ecr_runtime::system::Semilinear;
 use nalgebra::SMatrix;
 use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::cell::Cell;
 
 struct Counting;
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+
+thread_local! {
+    /// Allocations made by this thread.
+    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
+}
+
+fn count() {
+    // `try_with`: the slot may be gone while the thread exits.
+    let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
+}
+
+fn allocations() -> usize {
+    ALLOCATIONS.with(Cell::get)
+}
+
+#[test]
+fn the_counter_counts() {
+    let before = allocations();
+    let v = std::hint::black_box(vec![1.0_f64; 3]);
+    assert_eq!(allocations() - before, 1);
+    drop(v);
+}
 
 unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
+        count();
         unsafe { System.alloc(layout) }
     }
     unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
         unsafe { System.dealloc(ptr, layout) }
     }
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
+        count();
         unsafe { System.realloc(ptr, layout, new_size) }
     }
 }
@@ -29,16 +51,11 @@ unsafe impl GlobalAlloc for Counting {
 #[global_allocator]
 static GLOBAL: Counting = Counting;
 
-/// The tests of this file run one at a time: the counter is global, and another test's
-/// set-up must not be counted.
-static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
-
 ecr_method!(r = 3);
 ecr_method!(r = 3, family = tc);
 
 #[test]
 fn steps_allocate_nothing() {
-    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let (omega, k) = (5.0_f64, 0.07_f64);
     let a = SMatrix::<f64, 2, 2>::new(0.0, 1.0, -(omega * omega + k * k), 0.0);
     let g = move |y: &[f64], out: &mut [f64]| {
@@ -51,19 +68,18 @@ fn steps_allocate_nothing() {
         EcStepper::new(Semilinear::new(DenseStatic::new(a).unwrap(), g), 3, 0.01).unwrap();
     let mut y = [0.0, omega];
     let mut z = [0.0, omega];
-    let before = ALLOCATIONS.load(Ordering::SeqCst);
+    let before = allocations();
     for _ in 0..1000 {
         fixed.step(&mut y).unwrap();
         run_time.step(&mut z).unwrap();
     }
-    let after = ALLOCATIONS.load(Ordering::SeqCst);
+    let after = allocations();
     assert_eq!(after - before, 0, "heap allocations during 2000 steps");
     assert_eq!(y, z);
 }
 
 #[test]
 fn second_order_steps_allocate_nothing() {
-    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     use ecr_runtime::problems::Fpu;
     use ecr_runtime::second_order::{Omega, SecondOrder, TcStepper};
     // One mode (fused sweeps, fixed-size storage) and six modes (the oscillator bank's
@@ -78,11 +94,13 @@ fn second_order_steps_allocate_nothing() {
     let mut chain = TcStepper::new(fpu.system().unwrap(), 3, 0.01).unwrap();
     let (mut q, mut p) = ([0.0], [5.0]);
     let (mut qc, mut pc) = fpu.initial_value();
-    let before = ALLOCATIONS.load(Ordering::SeqCst);
+    let before = allocations();
     for _ in 0..1000 {
         fixed.step(&mut q, &mut p).unwrap();
+    }
+    for _ in 0..1000 {
         chain.step(&mut qc, &mut pc).unwrap();
     }
-    let after = ALLOCATIONS.load(Ordering::SeqCst);
+    let after = allocations();
     assert_eq!(after - before, 0, "heap allocations during 2000 steps");
 }
