@@ -10,9 +10,16 @@
 //! `ecr_runtime::stepper`), whose floor this table shows. The φ-form floor, for comparison,
 //! is what this example printed before the change (commit aa3baab).
 //!
+//! A second table does the same for TCrP (the ECrP stepper on the second-order form, with the
+//! oscillator operator) on Duffing in second-order form, q'' + (ω² + k²) q = 2k² q³ (exact
+//! solution), and on the Fermi–Pasta–Ulam chain (m = 3, ω = 50, T = 10; reference: ECrP with
+//! r = 8 on the dense first-order form at h = 2⁻¹⁴, a different evaluation of the same flow),
+//! errors in the max-norm relative to the largest component.
+//!
 //! Run: `cargo run --release --example error_floor`.
 
-use ecr::runtime::problems::Duffing;
+use ecr::runtime::problems::{Duffing, Fpu};
+use ecr::runtime::second_order::{Omega, SecondOrder, SecondOrderSystem, TcStepper};
 use ecr::runtime::stepper::{EcStepper, RuntimeKernel, SolverSettings};
 
 fn main() -> Result<(), ecr::runtime::Error> {
@@ -77,6 +84,73 @@ fn main() -> Result<(), ecr::runtime::Error> {
                 println!("|   |   | failed: {f} | | | | | |");
             }
         }
+    }
+    second_order()
+}
+
+/// Median relative error of TCrP for h = 2⁻⁹..2⁻¹³ over [0, t_end] against `exact`.
+fn tc_floor<S: SecondOrderSystem>(
+    sys: &S,
+    r: usize,
+    y0: &[f64],
+    t_end: f64,
+    exact: &[f64],
+) -> Result<f64, ecr::runtime::Error> {
+    let n = y0.len() / 2;
+    let scale = exact.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let mut errs = Vec::new();
+    for i in 9..14 {
+        let h = 1.0 / 2f64.powi(i);
+        let mut st = TcStepper::new(sys, r, h)?;
+        let (mut q, mut p) = (y0[..n].to_vec(), y0[n..].to_vec());
+        for _ in 0..(t_end / h).round() as usize {
+            st.step(&mut q, &mut p)?;
+        }
+        let err = q
+            .iter()
+            .chain(&p)
+            .zip(exact)
+            .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        errs.push(err / scale);
+    }
+    errs.sort_by(f64::total_cmp);
+    Ok(errs[errs.len() / 2])
+}
+
+fn second_order() -> Result<(), ecr::runtime::Error> {
+    let (w, k) = (1.0, 0.5);
+    let duffing = Duffing::new(w, k)?;
+    let k2 = k * k;
+    let sys = SecondOrder::new(
+        Omega::scalar(w * w + k2, 1)?,
+        move |q: &[f64], f: &mut [f64]| f[0] = -2.0 * k2 * q[0].powi(3),
+    );
+    let exact = duffing.exact(10.0)?;
+    let fpu = Fpu::new(3, 50.0)?;
+    let fpu_sys = fpu.system()?;
+    let y0 = fpu.initial_value_first_order();
+    let t_fpu = 10.0;
+    let h_ref = 1.0 / 2f64.powi(14);
+    let mut reference = y0.clone();
+    let mut st = EcStepper::with_nodes(
+        fpu.first_order_system()?,
+        8,
+        8,
+        h_ref,
+        SolverSettings::default(),
+    )?;
+    for _ in 0..(t_fpu / h_ref).round() as usize {
+        st.step(&mut reference)?;
+    }
+    println!();
+    println!(
+        "| r | TCrP Duffing (T = 10), median error h = 1/2^9..1/2^13 | TCrP FPU (T = 10), same |"
+    );
+    println!("|---|---|---|");
+    for r in 2..=12usize {
+        let d = tc_floor(&sys, r, &duffing.initial_value(), 10.0, &exact)?;
+        let f = tc_floor(&fpu_sys, r, &y0, t_fpu, &reference)?;
+        println!("| {r} | {d:.2e} | {f:.2e} |");
     }
     Ok(())
 }

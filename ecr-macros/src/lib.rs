@@ -10,7 +10,7 @@ mod expand;
 use proc_macro::TokenStream;
 
 /// Emits a fixed-order ECrP stepper: `ecr_method!(r = 3)`, options `s = S`, `name = Ident`,
-/// `family = ec`, `runtime = path`, and a leading visibility (`pub`, `pub(crate)`).
+/// `family = ec | tc | rknc`, `runtime = path`, and a leading visibility (`pub`, `pub(crate)`).
 /// See `ecr_runtime::ecr_method` for the full documentation and examples.
 #[proc_macro]
 pub fn ecr_method(input: TokenStream) -> TokenStream {

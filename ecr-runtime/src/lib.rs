@@ -26,9 +26,9 @@ extern crate self as ecr_runtime;
 ///
 /// `ecr_method!(r = 3)` defines, in the calling module:
 /// - `Ec3Kernel`: a unit type with the method's constants (`R`, `S`, `NODES`, `WEIGHTS`,
-///   `W`, each the correctly rounded value of an exactly generated quantity, provenance in its
-///   doc) implementing [`stepper::Kernel`] with the moment sum G = W g and the stage loop
-///   unrolled;
+///   `LW`, each the correctly rounded value of an exactly generated quantity, provenance in its
+///   doc) implementing [`stepper::Kernel`] with the Legendre moment sum L = ℓ g and the stage
+///   loop unrolled;
 /// - `Ec3<Sys, const D: usize>`: the stepper for dimension `D` known at compile time, stage
 ///   state in fixed-size arrays ([`stepper::StaticBuffers`]);
 /// - `Ec3Dyn<Sys>`: the stepper for a dimension known at run time, stage state allocated once
@@ -37,10 +37,16 @@ extern crate self as ecr_runtime;
 /// Both are [`stepper::Stepper`]s: the same [`system::System`] works with them and with the
 /// run-time-r [`stepper::EcStepper`], and they compute bit for bit the same steps.
 ///
+/// With `family = tc` (TCrP, for `q'' + Ωq = −∇U(q)`) or `family = rknc` (RKNCrP, Ω = 0) the
+/// kernel is the same and the steppers are [`second_order::TcStepper`]s, i.e. the same ECrP
+/// stepper on the first-order form of a [`second_order::SecondOrderSystem`]: `Tc3<Sys, const
+/// N: usize>` for `N` positions known at compile time (state (q, p) in fixed-size arrays) and
+/// `Tc3Dyn<Sys>`, bit for bit equal to the run-time [`second_order::TcStepper`].
+///
 /// Options (comma-separated, any order): `s = S` (Gauss–Legendre points, default r),
-/// `name = MyStepper` (default `Ec{r}`, or `Ec{r}S{s}` when s ≠ r; the kernel and dynamic
-/// types are `MyStepperKernel`, `MyStepperDyn`), `family = ec` (`tc`, `rknc` are not available
-/// yet), `runtime = path` (where `ecr_runtime` is, if neither it nor `ecr` is a direct
+/// `name = MyStepper` (default `Ec{r}`, `Tc{r}` or `Rknc{r}`, with `S{s}` appended when s ≠
+/// r; the kernel and dynamic types are `MyStepperKernel`, `MyStepperDyn`), `family = ec | tc
+/// | rknc`, `runtime = path` (where `ecr_runtime` is, if neither it nor `ecr` is a direct
 /// dependency), and a leading visibility (`pub`, `pub(crate)`). Every misuse is a compile
 /// error at the offending token.
 ///

@@ -151,7 +151,13 @@ impl Omega {
     /// ½ xᵀΩx.
     pub fn half_quadratic(&self, x: &[f64]) -> f64 {
         match &self.matrix {
-            None => 0.5 * x.iter().zip(&self.lambda).map(|(v, l)| l * v * v).sum::<f64>(),
+            None => {
+                0.5 * x
+                    .iter()
+                    .zip(&self.lambda)
+                    .map(|(v, l)| l * v * v)
+                    .sum::<f64>()
+            }
             Some(m) => {
                 let mut sum = 0.0;
                 for (i, xi) in x.iter().enumerate() {

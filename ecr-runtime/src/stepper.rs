@@ -189,8 +189,8 @@ pub enum StageSolver {
     /// tests/newton.rs). Cost per step: the s·d × s·d Newton matrix and its LU factorisation
     /// (allocated per step), s² products of d × d matrices; once per step size, the kernel
     /// matrices from `s·r·d` bank applications. Meant for moderate d: construction fails
-    /// with an error naming the size when the `2s²d² + 2d²` numbers cannot be allocated. ECrP
-    /// only: the other steppers reject it.
+    /// with an error naming the size when the `2s²d² + 2d²` numbers cannot be allocated. The ECrP
+    /// stepper (and so TCrP/RKNCrP, which run on it); the baselines reject it.
     Newton,
 }
 
@@ -254,7 +254,7 @@ impl SolverSettings {
         } else {
             Err(Error::InvalidParameter(format!(
                 "{stepper} solves its stages by fixed-point sweeps only (StageSolver::Newton is \
-                 implemented for the ECrP stepper)"
+                 implemented for the ECrP stepper and TCrP/RKNCrP)"
             )))
         }
     }

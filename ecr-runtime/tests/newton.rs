@@ -212,13 +212,27 @@ fn a_bad_jacobian_is_an_error_naming_it() {
 
 #[test]
 fn newton_is_rejected_where_it_is_not_implemented() {
-    // The TCrP stepper has no Newton iteration: asking for one is an error, not ignored.
+    // The exponential AVF baseline has no Newton iteration: asking for one is an error, not
+    // ignored.
+    use ecr_runtime::baselines::collocation::ExpAvf;
+    let p = AllenCahn::new(true).unwrap();
+    let r = ExpAvf::new(&p, 3, 1e-4, newton());
+    assert!(matches!(r, Err(Error::InvalidParameter(_))));
+}
+
+#[test]
+fn newton_runs_for_the_second_order_methods() {
+    // TCrP is the ECrP stepper on the oscillator operator, Newton included (forward
+    // differences of the force: FPU provides no Jacobian).
     use ecr_runtime::problems::Fpu;
     use ecr_runtime::second_order::TcStepper;
     let f = Fpu::default();
-    let sys = f.system().unwrap();
-    let r = TcStepper::with_nodes(sys, 2, 2, 0.01, newton());
-    assert!(matches!(r, Err(Error::InvalidParameter(_))));
+    let mut st = TcStepper::with_nodes(f.system().unwrap(), 2, 2, 0.01, newton()).unwrap();
+    let (mut q, mut p) = f.initial_value();
+    for _ in 0..10 {
+        let rep = st.step(&mut q, &mut p).unwrap();
+        assert!(rep.converged);
+    }
 }
 
 /// Newton's `O(s²d²)` matrices are refused at construction, with their size, when they cannot

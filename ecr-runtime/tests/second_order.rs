@@ -1,7 +1,10 @@
 //! TCrP/RKNCrP on the one ECrP stepper: the oscillator operator's banks against their defining
 //! integrals and against the dense 2n × 2n matrix, per-step agreement with ECrP on the
 //! first-order form, and what the first-order stepper brings with it (fused sweeps for one
-//! mode, Newton, the predictor, dense output, fixed-size storage, no allocation).
+//! mode, Newton, the predictor, dense output, fixed-size storage), and the damped form.
+// Loops over bank nodes index the bank and the node list alike; the Duffing builder returns
+// closures (unnameable types).
+#![allow(clippy::needless_range_loop, clippy::type_complexity)]
 
 mod common_ec;
 
@@ -154,9 +157,9 @@ fn oscillator_banks_equal_the_dense_first_order_matrix() {
         }
         let omat = match omega.matrix() {
             Some(m) => m.clone(),
-            None => DMatrix::from_diagonal(&nalgebra::DVector::from_column_slice(
-                omega.eigenvalues(),
-            )),
+            None => {
+                DMatrix::from_diagonal(&nalgebra::DVector::from_column_slice(omega.eigenvalues()))
+            }
         };
         a.view_mut((n, 0), (n, n)).copy_from(&(-omat));
         let dense = Dense::new(a).unwrap();
@@ -238,16 +241,15 @@ fn one_step_agrees_with_ecrp_on_the_first_order_form() {
         let settings = SolverSettings::default();
         // Duffing (one mode, fused sweeps on both sides).
         let d = Duffing::new(5.0, 0.07).unwrap();
-        let mut tc = TcStepper::with_nodes(duffing_second_order(5.0, 0.07), r, r, 0.05, settings)
-            .unwrap();
+        let mut tc =
+            TcStepper::with_nodes(duffing_second_order(5.0, 0.07), r, r, 0.05, settings).unwrap();
         let mut ec = EcStepper::with_nodes(d.system().unwrap(), r, r, 0.05, settings).unwrap();
         let duff = per_step_agreement(&mut tc, &mut ec, &d.initial_value(), 400);
         // FPU (m = 3, ω = 50: six modes, three of them stiff).
         let fpu = Fpu::new(3, 50.0).unwrap();
         let mut tc = TcStepper::with_nodes(fpu.system().unwrap(), r, r, 0.01, settings).unwrap();
         let mut ec =
-            EcStepper::with_nodes(fpu.first_order_system().unwrap(), r, r, 0.01, settings)
-                .unwrap();
+            EcStepper::with_nodes(fpu.first_order_system().unwrap(), r, r, 0.01, settings).unwrap();
         let fp = per_step_agreement(&mut tc, &mut ec, &fpu.initial_value_first_order(), 400);
         println!("r = {r}: per-step difference TCrP vs ECrP: Duffing {duff:.2e}, FPU {fp:.2e}");
         assert!(duff <= 1e-15 && fp <= 1e-15, "r = {r}: {duff:e}, {fp:e}");
@@ -257,11 +259,17 @@ fn one_step_agrees_with_ecrp_on_the_first_order_form() {
 #[test]
 fn one_mode_fuses_its_sweeps() {
     let form = SecondOrderForm::new(duffing_second_order(5.0, 0.07)).unwrap();
-    let bank = form.linear().kernel_bank(0.05, &[0.2, 0.8, 1.0], 3).unwrap();
+    let bank = form
+        .linear()
+        .kernel_bank(0.05, &[0.2, 0.8, 1.0], 3)
+        .unwrap();
     assert!(fuses_stages(&bank, 3, 3));
     let fpu = Fpu::new(3, 50.0).unwrap();
     let form = SecondOrderForm::new(fpu.system().unwrap()).unwrap();
-    let bank = form.linear().kernel_bank(0.05, &[0.2, 0.8, 1.0], 3).unwrap();
+    let bank = form
+        .linear()
+        .kernel_bank(0.05, &[0.2, 0.8, 1.0], 3)
+        .unwrap();
     assert!(!fuses_stages(&bank, 3, 3));
     let st = TcStepper::new(duffing_second_order(5.0, 0.07), 3, 0.05).unwrap();
     assert!(st.stepper().stage_matrices().is_some());
@@ -293,7 +301,9 @@ fn newton_predictor_and_dense_output_come_with_the_stepper() {
     for (a, b) in [(&q, &qn), (&p, &pn), (&q, &qx), (&p, &px)] {
         assert!(common_ec::max_abs_diff(a, b) <= 1e-13);
     }
-    println!("sweeps over 200 steps: fixed point {fixed_sweeps}, Newton {newton_sweeps}, predictor {pred_sweeps}");
+    println!(
+        "sweeps over 200 steps: fixed point {fixed_sweeps}, Newton {newton_sweeps}, predictor {pred_sweeps}"
+    );
     assert!(newton_sweeps < fixed_sweeps && pred_sweeps < fixed_sweeps);
     // Dense output: the end of the step at τ = 1, and between the ends a state close to both.
     let end = st.dense_output(1.0).unwrap();
@@ -309,7 +319,7 @@ mod fixed {
 }
 
 #[test]
-fn fixed_size_one_mode_stepper_is_bit_identical_and_allocation_free() {
+fn fixed_size_steppers_are_bit_identical_to_the_run_time_one() {
     // Duffing: one mode, fused sweeps with compile-time sizes (N = 1, state (q, p)).
     let h = 0.05;
     let mut st: fixed::Tc4<_, 1> = fixed::Tc4::fixed(duffing_second_order(5.0, 0.07), h).unwrap();
@@ -346,5 +356,102 @@ fn fixed_size_one_mode_stepper_is_bit_identical_and_allocation_free() {
         tc.step(&mut q, &mut p).unwrap();
     }
     assert_eq!(y, vec![q[0], p[0]]);
-    let _ = Semilinear::new(ecr_runtime::operator::Zero::new(1), |_: &[f64], _: &mut [f64]| {});
+}
+
+#[test]
+fn damped_oscillator_equals_the_dense_damped_matrix_and_dissipates() {
+    // q'' − Nq' + Ωq = −∇U with N = V diag(ν) Vᵀ sharing Ω's eigenvectors.
+    let om = DMatrix::from_row_slice(3, 3, &[2.0, -1.0, 0.0, -1.0, 2.0, -1.0, 0.0, -1.0, 30.0]);
+    let nu = vec![-0.3, 0.0, -2.0];
+    for dense_omega in [true, false] {
+        let omega = if dense_omega {
+            Omega::dense(om.clone()).unwrap()
+        } else {
+            Omega::diagonal(vec![0.0, 4.0, 900.0]).unwrap()
+        };
+        let n = omega.dim();
+        let (omat, nmat) = match omega.basis() {
+            Some(v) => (
+                om.clone(),
+                v * DMatrix::from_diagonal(&nalgebra::DVector::from_column_slice(&nu))
+                    * v.transpose(),
+            ),
+            None => (
+                DMatrix::from_diagonal(&nalgebra::DVector::from_column_slice(omega.eigenvalues())),
+                DMatrix::from_diagonal(&nalgebra::DVector::from_column_slice(&nu)),
+            ),
+        };
+        let mut a = DMatrix::zeros(2 * n, 2 * n);
+        for i in 0..n {
+            a[(i, n + i)] = 1.0;
+        }
+        a.view_mut((n, 0), (n, n)).copy_from(&(-omat));
+        a.view_mut((n, n), (n, n)).copy_from(&nmat);
+        let dense = Dense::new(a).unwrap();
+        let osc = Oscillator::damped(omega, nu.clone()).unwrap();
+        let taus = [0.0, 0.3, 1.0, 1.2];
+        let h = 0.05;
+        for legendre_bank in [false, true] {
+            let (bo, bd) = if legendre_bank {
+                (
+                    osc.kernel_bank(h, &taus, 3).unwrap(),
+                    dense.kernel_bank(h, &taus, 3).unwrap(),
+                )
+            } else {
+                (
+                    osc.phi_bank(h, &taus, 3).unwrap(),
+                    dense.phi_bank(h, &taus, 3).unwrap(),
+                )
+            };
+            let (mut wo, mut wd) = (bo.workspace(), bd.workspace());
+            let (mut e, mut x, mut y) = (vec![0.0; 2 * n], vec![0.0; 2 * n], vec![0.0; 2 * n]);
+            for i in 0..taus.len() {
+                for k in 0..=3 {
+                    for c in 0..2 * n {
+                        e.fill(0.0);
+                        e[c] = 1.0;
+                        bo.apply(i, k, &e, &mut x, &mut wo);
+                        bd.apply(i, k, &e, &mut y, &mut wd);
+                        let scale = y.iter().fold(1.0f64, |m, v| m.max(v.abs()));
+                        let diff = common_ec::max_abs_diff(&x, &y) / scale;
+                        assert!(
+                            diff <= 1e-13,
+                            "dense Ω {dense_omega}, legendre {legendre_bank}, τ = {}, k = {k}, \
+                             column {c}: {diff:e}",
+                            taus[i]
+                        );
+                    }
+                }
+            }
+        }
+        // A run: H = ½|p|² + ½qᵀΩq + ¼Σq⁴ decreases every step.
+        let om2 = osc.omega().clone();
+        let sys = Semilinear::with_energy(
+            osc,
+            |y: &[f64], o: &mut [f64]| {
+                let n = y.len() / 2;
+                o[..n].fill(0.0);
+                for i in 0..n {
+                    o[n + i] = -y[i].powi(3);
+                }
+            },
+            move |y: &[f64]| {
+                let n = y.len() / 2;
+                0.5 * y[n..].iter().map(|v| v * v).sum::<f64>()
+                    + om2.half_quadratic(&y[..n])
+                    + 0.25 * y[..n].iter().map(|v| v.powi(4)).sum::<f64>()
+            },
+        );
+        let mut st = EcStepper::new(&sys, 3, 0.01).unwrap();
+        let mut y = vec![0.3, -0.2, 0.5, 0.1, 0.4, -0.3];
+        let mut energy = sys.energy(&y).unwrap();
+        for _ in 0..500 {
+            st.step(&mut y).unwrap();
+            let e = sys.energy(&y).unwrap();
+            assert!(e <= energy, "H rose: {energy} -> {e}");
+            energy = e;
+        }
+    }
+    assert!(Oscillator::damped(Omega::zero(2), vec![0.1, 0.0]).is_err());
+    assert!(Oscillator::damped(Omega::zero(2), vec![0.0]).is_err());
 }

@@ -1,5 +1,6 @@
 //! The linear part of a second-order system `q'' + Ωq = −∇U(q)` in first-order form:
-//! `y = (q, p)`, `A = [[0, I], [−Ω, 0]]` (Ω symmetric positive semidefinite).
+//! `y = (q, p)`, `A = [[0, I], [−Ω, 0]]` (Ω symmetric positive semidefinite), and of its damped
+//! form `q'' − Nq' + Ωq = −∇U(q)`, `A = [[0, I], [−Ω, N]]`, for N with the eigenvectors of Ω.
 //!
 //! The trigonometric and RKN collocation methods (TCrP, RKNCrP for Ω = 0) are ECrP applied to
 //! this system, so they run on the one ECrP stepper; this operator supplies the φ- and
@@ -27,6 +28,11 @@
 //!   so the quotient is accurate as θ → 0), and at θ = 0 (RKNC, or a zero mode) the limit
 //!   `∫₀¹ (1 − ξ) P̃_j(τξ) dξ`.
 //!
+//! The damped form `q'' − Nq' + Ωq = …` with N sharing Ω's eigenvectors (modal damping ν_l,
+//! [`Oscillator::damped`]) has the blocks `[[0, 1], [−λ_l, ν_l]]`; their functions are general
+//! 2 × 2 matrices, computed per mode by the dense algorithms on the balanced block (see
+//! `damped_blocks`), four numbers per mode and function.
+//!
 //! `combine` then costs 4(m + 1) multiply-adds per mode and node (plus, for a dense Ω, the
 //! transforms `Vᵀ` of y₀ and the m moments, shared by all nodes, and one `V` per node).
 //!
@@ -53,10 +59,15 @@ use crate::phi::{LegendreKernels, expm_dd, phi_trig};
 use crate::second_order::Omega;
 use crate::{Error, Result};
 
-/// `A = [[0, I], [−Ω, 0]]` on `y = (q, p) ∈ ℝ^{2n}` (see the module docs).
+/// `A = [[0, I], [−Ω, N]]` on `y = (q, p) ∈ ℝ^{2n}` (see the module docs); `N = 0` unless
+/// built with [`damped`](Self::damped).
 #[derive(Clone, Debug)]
 pub struct Oscillator {
     omega: Arc<Omega>,
+    /// The modal damping ν_l (N = V diag(ν) Vᵀ), if any.
+    damping: Option<Vec<f64>>,
+    /// N as a matrix, for a dense Ω with damping.
+    damping_matrix: Option<DMatrix<f64>>,
 }
 
 impl Oscillator {
@@ -64,12 +75,52 @@ impl Oscillator {
     pub fn new(omega: Omega) -> Self {
         Oscillator {
             omega: Arc::new(omega),
+            damping: None,
+            damping_matrix: None,
         }
+    }
+
+    /// The operator of the damped system `q'' − Nq' + Ωq = …` with modal damping: N has the
+    /// eigenvectors of Ω and the eigenvalues `nu` (one per mode, in the order of
+    /// [`Omega::eigenvalues`]; `N = diag(nu)` for zero, scalar and diagonal Ω). Each mode is
+    /// then the block `[[0, 1], [−λ_l, ν_l]]`, whose functions the banks compute as 2 × 2
+    /// matrices (four numbers per mode).
+    ///
+    /// # Errors
+    /// [`Error::DimensionMismatch`] if `nu` does not have one entry per mode,
+    /// [`Error::InvalidInput`] for a positive (energy-increasing) or non-finite entry.
+    pub fn damped(omega: Omega, nu: Vec<f64>) -> Result<Self> {
+        if nu.len() != omega.dim() {
+            return Err(Error::DimensionMismatch {
+                what: "modal damping ν (one per mode of Ω)",
+                expected: omega.dim(),
+                found: nu.len(),
+            });
+        }
+        if let Some(v) = nu.iter().find(|v| !(v.is_finite() && **v <= 0.0)) {
+            return Err(Error::InvalidInput(format!(
+                "modal damping must be finite and <= 0 (N negative semidefinite), got {v:?}"
+            )));
+        }
+        let damping_matrix = omega.basis().map(|v| {
+            let scaled = v * DMatrix::from_diagonal(&nalgebra::DVector::from_column_slice(&nu));
+            scaled * v.transpose()
+        });
+        Ok(Oscillator {
+            omega: Arc::new(omega),
+            damping: Some(nu),
+            damping_matrix,
+        })
     }
 
     /// Ω.
     pub fn omega(&self) -> &Omega {
         &self.omega
+    }
+
+    /// The modal damping ν (eigenvalues of N), if damped.
+    pub fn damping(&self) -> Option<&[f64]> {
+        self.damping.as_deref()
     }
 
     /// The number of modes n (`dim() = 2n`).
@@ -124,6 +175,38 @@ impl Functions {
     }
 }
 
+impl Functions {
+    /// The `p + 1` functions of slot k = 0..=p at node i of the damped mode block
+    /// `t [[0, 1], [−λ, ν]]`, as 2 × 2 matrices `[a, b, c, e]` (row-major), by the dense
+    /// algorithms on the balanced block: with `D = diag(√λ, 1)` (λ > 1) the block is
+    /// `D⁻¹ t[[0, √λ], [−√λ, ν]] D`, whose entries are of one size, and `f(X) = D⁻¹ f(DXD⁻¹) D`.
+    fn damped_blocks(
+        &self,
+        i: usize,
+        t: f64,
+        lambda: f64,
+        nu: f64,
+        p: usize,
+    ) -> Result<Vec<[f64; 4]>> {
+        let w = if lambda > 1.0 { lambda.sqrt() } else { 1.0 };
+        // D X D⁻¹ = [[0, t w], [−t λ/w, t ν]].
+        let x = DMatrix::from_row_slice(2, 2, &[0.0, t * w, -t * lambda / w, t * nu]);
+        let mats = match self {
+            Functions::Phi => crate::phi::phi_dense(&x, p)?,
+            Functions::Legendre(k, maps) => {
+                let mut m = crate::phi::phi_dense(&x, 0)?;
+                m.extend(k.rows_dense(&maps[i], &x)?);
+                m
+            }
+        };
+        // Undo the balancing: f(X)_01 = f̃_01 / w, f(X)_10 = f̃_10 · w.
+        Ok(mats
+            .iter()
+            .map(|m| [m[(0, 0)], m[(0, 1)] / w, m[(1, 0)] * w, m[(1, 1)]])
+            .collect())
+    }
+}
+
 /// Scratch for building a bank.
 #[derive(Default)]
 struct Buf {
@@ -148,8 +231,8 @@ enum DdPropagator {
     },
 }
 
-/// The φ- or Legendre-kernel bank of an [`Oscillator`]: per node, slot and mode the numbers
-/// `a`, `b`, `c` of the 2 × 2 modal block (see the module docs).
+/// The φ- or Legendre-kernel bank of an [`Oscillator`]: per node, slot and mode the four
+/// entries of the 2 × 2 modal block (see the module docs).
 #[derive(Clone, Debug, PartialEq)]
 pub struct OscillatorBank {
     n: usize,
@@ -157,7 +240,8 @@ pub struct OscillatorBank {
     p: usize,
     /// The eigenvectors of a dense Ω (`None`: the modes are the coordinates).
     basis: Option<Arc<DMatrix<f64>>>,
-    /// `vals[((i (p+1) + k) 3 + part) n + l]`, part 0, 1, 2 = a, b, c.
+    /// `vals[((i (p+1) + k) 4 + part) n + l]`, part 0..4 = a, b, c, e of the block
+    /// `[[a, b], [c, e]]`.
     vals: Vec<f64>,
     dd: Option<DdPropagator>,
 }
@@ -186,6 +270,15 @@ impl LinearOperator for Oscillator {
         yq.copy_from_slice(&x[n..]);
         self.omega.apply(&x[..n], yp);
         yp.iter_mut().for_each(|v| *v = -*v);
+        match (&self.damping, &self.damping_matrix) {
+            (_, Some(nm)) => gemv(yp, 1.0, nm, &x[n..], 1.0),
+            (Some(nu), None) => {
+                for ((o, v), pv) in yp.iter_mut().zip(nu).zip(&x[n..]) {
+                    *o += v * pv;
+                }
+            }
+            (None, None) => {}
+        }
     }
 
     fn phi_bank(&self, h: f64, taus: &[f64], p: usize) -> Result<OscillatorBank> {
@@ -202,22 +295,40 @@ impl LinearOperator for Oscillator {
 impl Oscillator {
     fn bank(&self, h: f64, taus: &[f64], p: usize, f: Functions) -> Result<OscillatorBank> {
         let lambda = self.omega.eigenvalues();
-        let lmax = lambda.iter().fold(1.0_f64, |m, l| m.max(*l));
+        let numax = self
+            .damping
+            .iter()
+            .flatten()
+            .fold(0.0_f64, |m, v| m.max(v.abs()));
+        let lmax = lambda.iter().fold(1.0_f64, |m, l| m.max(*l)).max(numax);
         check_bank_scale(h, taus, lmax)?;
         let n = lambda.len();
-        let mut vals = vec![0.0; taus.len() * (p + 1) * 3 * n];
+        let mut vals = vec![0.0; taus.len() * (p + 1) * 4 * n];
         let mut parts = vec![(0.0, 0.0); p + 1];
         let mut buf = Buf::default();
         for (i, tau) in taus.iter().enumerate() {
             let t = tau * h;
             for (l, &lam) in lambda.iter().enumerate() {
-                f.block_parts(i, t, lam, &mut parts, &mut buf);
-                for (k, &(a, s)) in parts.iter().enumerate() {
-                    let base = (i * (p + 1) + k) * 3 * n + l;
-                    let b = t * s;
-                    vals[base] = a;
-                    vals[base + n] = b;
-                    vals[base + 2 * n] = -lam * b;
+                let nu = self.damping.as_ref().map_or(0.0, |d| d[l]);
+                if nu == 0.0 {
+                    f.block_parts(i, t, lam, &mut parts, &mut buf);
+                    for (k, &(a, s)) in parts.iter().enumerate() {
+                        let base = (i * (p + 1) + k) * 4 * n + l;
+                        let b = t * s;
+                        vals[base] = a;
+                        vals[base + n] = b;
+                        vals[base + 2 * n] = -lam * b;
+                        vals[base + 3 * n] = a;
+                    }
+                } else {
+                    let blocks = f.damped_blocks(i, t, lam, nu, p)?;
+                    for (k, m) in blocks.iter().enumerate() {
+                        let base = (i * (p + 1) + k) * 4 * n + l;
+                        vals[base] = m[0];
+                        vals[base + n] = m[1];
+                        vals[base + 2 * n] = m[2];
+                        vals[base + 3 * n] = m[3];
+                    }
                 }
             }
         }
@@ -241,8 +352,9 @@ impl Oscillator {
         let n = self.omega.dim();
         if self.omega.basis().is_none() {
             let (mut hi, mut lo) = (Vec::with_capacity(n), Vec::with_capacity(n));
-            for &lam in self.omega.eigenvalues() {
-                let x = DMatrix::from_row_slice(2, 2, &[0.0, h, -h * lam, 0.0]);
+            for (l, &lam) in self.omega.eigenvalues().iter().enumerate() {
+                let nu = self.damping.as_ref().map_or(0.0, |d| d[l]);
+                let x = DMatrix::from_row_slice(2, 2, &[0.0, h, -h * lam, h * nu]);
                 let (eh, el) = expm_dd(&x)?;
                 hi.push([eh[(0, 0)], eh[(0, 1)], eh[(1, 0)], eh[(1, 1)]]);
                 lo.push([el[(0, 0)], el[(0, 1)], el[(1, 0)], el[(1, 1)]]);
@@ -260,6 +372,9 @@ impl Oscillator {
             x[(i, n + i)] = h;
             for j in 0..n {
                 x[(n + i, j)] = -h * omega[(i, j)];
+                if let Some(nm) = &self.damping_matrix {
+                    x[(n + i, n + j)] = h * nm[(i, j)];
+                }
             }
         }
         let (hi, lo) = expm_dd(&x)?;
@@ -268,13 +383,13 @@ impl Oscillator {
 }
 
 impl OscillatorBank {
-    /// The numbers a, b, c of slot k at node i, each of length n.
+    /// The blocks `[[a, b], [c, e]]` of slot k at node i: a, b, c, e, each of length n.
     #[inline]
-    fn slot(&self, i: usize, k: usize) -> (&[f64], &[f64], &[f64]) {
+    fn slot(&self, i: usize, k: usize) -> [&[f64]; 4] {
         let n = self.n;
-        let base = (i * (self.p + 1) + k) * 3 * n;
-        let v = &self.vals[base..base + 3 * n];
-        (&v[..n], &v[n..2 * n], &v[2 * n..])
+        let base = (i * (self.p + 1) + k) * 4 * n;
+        let v = &self.vals[base..base + 4 * n];
+        [&v[..n], &v[n..2 * n], &v[2 * n..3 * n], &v[3 * n..]]
     }
 
     /// `out = Σ-form of one node in modal coordinates`: `out = F_0 y0 + Σ_k coef_k F_{k+1} g_k`
@@ -282,19 +397,19 @@ impl OscillatorBank {
     #[inline]
     fn modal_block(&self, i: usize, y0: &[f64], g: &[f64], coef: &[f64], out: &mut [f64]) {
         let n = self.n;
-        let (a0, b0, c0) = self.slot(i, 0);
+        let [a0, b0, c0, e0] = self.slot(i, 0);
         let (oq, op) = out.split_at_mut(n);
         let (q0, p0) = y0.split_at(n);
         for l in 0..n {
             oq[l] = a0[l] * q0[l] + b0[l] * p0[l];
-            op[l] = c0[l] * q0[l] + a0[l] * p0[l];
+            op[l] = c0[l] * q0[l] + e0[l] * p0[l];
         }
         for (k, (gk, c)) in g.chunks_exact(2 * n).zip(coef).enumerate() {
-            let (a, b, cc) = self.slot(i, k + 1);
+            let [a, b, cc, e] = self.slot(i, k + 1);
             let (gq, gp) = gk.split_at(n);
             for l in 0..n {
                 oq[l] += c * (a[l] * gq[l] + b[l] * gp[l]);
-                op[l] += c * (cc[l] * gq[l] + a[l] * gp[l]);
+                op[l] += c * (cc[l] * gq[l] + e[l] * gp[l]);
             }
         }
     }
@@ -421,11 +536,11 @@ impl PhiBank for OscillatorBank {
         apply_shape(2 * self.n, self.len, self.p, i, k, x, out);
         let n = self.n;
         let apply_modal = |x: &[f64], out: &mut [f64]| {
-            let (a, b, c) = self.slot(i, k);
+            let [a, b, c, e] = self.slot(i, k);
             let (oq, op) = out.split_at_mut(n);
             for l in 0..n {
                 oq[l] = a[l] * x[l] + b[l] * x[n + l];
-                op[l] = c[l] * x[l] + a[l] * x[n + l];
+                op[l] = c[l] * x[l] + e[l] * x[n + l];
             }
         };
         match &self.basis {
