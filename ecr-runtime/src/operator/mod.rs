@@ -118,6 +118,12 @@ impl NodeFunctions {
         }
     }
 
+    /// `true` if the propagator at node i is carried beyond f64 (see
+    /// [`PhiBank::propagate_dd`]): τ = 1 in a Legendre bank.
+    pub(crate) fn carries_dd(&self, i: usize) -> bool {
+        self.legendre.is_some() && self.taus[i] == 1.0
+    }
+
     /// `e^x`, `Ψ_0(τ_i, ·) … Ψ_{n−1}(τ_i, ·)` for the nodes `taus`.
     pub(crate) fn legendre(taus: &[f64], n: usize) -> Self {
         let k = crate::phi::LegendreKernels::new(n);
@@ -162,7 +168,7 @@ impl NodeFunctions {
         match &self.legendre {
             None => Ok((crate::phi::phi_dense(x, p)?, None)),
             Some((k, maps)) => {
-                let (mut out, lo) = if self.taus[i] == 1.0 && x.nrows() <= DD_PROPAGATOR_MAX_DIM {
+                let (mut out, lo) = if self.carries_dd(i) && x.nrows() <= DD_PROPAGATOR_MAX_DIM {
                     let (hi, lo) = crate::phi::expm_dd(x)?;
                     (vec![hi], Some(lo))
                 } else {
@@ -241,14 +247,27 @@ pub trait PhiBank {
         combine_shape_checked(self.dim(), self.len(), self.p(), indices, y0, g, coef, out)
     }
 
-    /// `hi + lo = e^{τ_i hA} y0` with the propagator and the product in double-double, if this
-    /// bank carries the propagator at node i that way (dense kernel banks at τ = 1, see
-    /// [`DD_PROPAGATOR_MAX_DIM`]); otherwise `false`, outputs untouched. Does not allocate.
+    /// `hi + lo = e^{τ_i hA} y0` with the propagator and the product carried beyond f64, if
+    /// this bank carries the propagator at node i that way; otherwise `false`, outputs
+    /// untouched. Kernel banks carry it at τ = 1 (the step's propagator): dense and symmetric
+    /// operators up to [`DD_PROPAGATOR_MAX_DIM`] as a double-double matrix (error ~ε² ‖y0‖),
+    /// scalar and diagonal operators as double-double numbers (error ~ε² |y0|), the spectral
+    /// operators (circulants, skew pairs) as `y0 + V (e^{hΛ} − I) V⁻¹ y0` with `e^{hΛ} − I`
+    /// rounded from double-double and f64 transforms (error ~ε ‖(e^{hA} − I) y0‖, plus the
+    /// forward transform's rounding of y0 times `e^{hΛ} − I`; `y0` itself enters exactly, and
+    /// a mode with `e^{hλ} = 1` is kept exactly). Does not allocate.
     ///
     /// # Panics
     /// If `i ≥ len()` or a slice length differs from `d`.
-    fn propagate_dd(&self, i: usize, y0: &[f64], hi: &mut [f64], lo: &mut [f64]) -> bool {
-        let _ = (i, y0, hi, lo);
+    fn propagate_dd(
+        &self,
+        i: usize,
+        y0: &[f64],
+        hi: &mut [f64],
+        lo: &mut [f64],
+        ws: &mut Self::Workspace,
+    ) -> bool {
+        let _ = (i, y0, hi, lo, ws);
         false
     }
 
