@@ -115,11 +115,18 @@ fn nls_drift(steps: usize, settings: SolverSettings) -> (f64, f64, f64, f64) {
         energy_every: 0,
         observe_every: 1000,
     };
-    let rep = integrate(&mut st, 0.0, steps as f64 * NLS_H, &mut y, opts, |t, y, _| {
-        let k = (t / NLS_H).round();
-        energy.push((k, (p.energy(y) - e0) / e0.abs()));
-        masses.push((k, (mass(y) - m0) / m0));
-    })
+    let rep = integrate(
+        &mut st,
+        0.0,
+        steps as f64 * NLS_H,
+        &mut y,
+        opts,
+        |t, y, _| {
+            let k = (t / NLS_H).round();
+            energy.push((k, (p.energy(y) - e0) / e0.abs()));
+            masses.push((k, (mass(y) - m0) / m0));
+        },
+    )
     .unwrap();
     assert_eq!(rep.steps, steps);
     let max = |s: &[(f64, f64)]| s.iter().fold(0.0f64, |m, v| m.max(v.1.abs()));

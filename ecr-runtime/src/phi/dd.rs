@@ -13,14 +13,14 @@ use super::{two_prod, two_sum};
 
 /// `ln 2` as the sum of three doubles (generated with 300-bit mpmath).
 const LN2: [f64; 3] = [
-    0.6931471805599453,
+    std::f64::consts::LN_2,
     2.3190468138462996e-17,
     5.707708438416212e-34,
 ];
 
 /// `π/2` as the sum of three doubles (generated with 300-bit mpmath).
 const PI_2: [f64; 3] = [
-    1.5707963267948966,
+    std::f64::consts::FRAC_PI_2,
     6.123233995736766e-17,
     -1.4973849048591698e-33,
 ];
@@ -233,7 +233,7 @@ mod tests {
             0.34,
             0.35,
             0.5,
-            0.6931471805599453,
+            std::f64::consts::LN_2,
         ];
         xs.extend([1.0, 2.5, 3.0, 10.0, 33.3, 100.0, 300.7, 700.0, 709.0]);
         let mut x = 1e-6;
@@ -282,8 +282,8 @@ mod tests {
             1e5,
             -3.0e5,
             12345.678,
-            1.5707963267948966,
-            3.141592653589793,
+            std::f64::consts::FRAC_PI_2,
+            std::f64::consts::PI,
         ]);
         for th in thetas {
             let (c, s) = cos_sin_dd(th);
