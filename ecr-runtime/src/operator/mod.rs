@@ -109,6 +109,13 @@ pub(crate) struct NodeFunctions {
 /// ([`PhiBank::propagate_dd`]).
 pub const DD_PROPAGATOR_MAX_DIM: usize = 256;
 
+/// Dense kernel banks up to this dimension also take the stage propagators `e^{τ_i hA}` (τ ≠ 1)
+/// from the double-double exponential, rounded to f64: the f64 scaling and squaring leaves
+/// their row sums off by up to 5e−13 at `‖hA‖ = 1e4` (a stage value that does not keep a
+/// conserved mean), the rounded double-double by an ulp. The set-up costs about (d/64)³·0.05 s
+/// per node more, so larger operators keep the f64 algorithm for the stages.
+pub const DD_STAGE_PROPAGATOR_MAX_DIM: usize = 64;
+
 impl NodeFunctions {
     /// φ₀..φ_p.
     pub(crate) fn phi() -> Self {
@@ -157,7 +164,8 @@ impl NodeFunctions {
 
     /// The `p + 1` matrix functions at `X = τ_i h A`, and the low part of the propagator
     /// `e^X = out[0] + lo` where it is carried in double-double: at τ = 1 in a Legendre bank,
-    /// for `d ≤ DD_PROPAGATOR_MAX_DIM`.
+    /// for `d ≤ DD_PROPAGATOR_MAX_DIM`. The other nodes of a Legendre bank take `out[0]` from
+    /// the double-double exponential too for `d ≤ DD_STAGE_PROPAGATOR_MAX_DIM`.
     #[allow(clippy::type_complexity)]
     pub(crate) fn dense(
         &self,
@@ -168,9 +176,12 @@ impl NodeFunctions {
         match &self.legendre {
             None => Ok((crate::phi::phi_dense(x, p)?, None)),
             Some((k, maps)) => {
-                let (mut out, lo) = if self.carries_dd(i) && x.nrows() <= DD_PROPAGATOR_MAX_DIM {
+                let d = x.nrows();
+                let (mut out, lo) = if self.carries_dd(i) && d <= DD_PROPAGATOR_MAX_DIM {
                     let (hi, lo) = crate::phi::expm_dd(x)?;
                     (vec![hi], Some(lo))
+                } else if d <= DD_STAGE_PROPAGATOR_MAX_DIM {
+                    (vec![crate::phi::expm_dd(x)?.0], None)
                 } else {
                     (crate::phi::phi_dense(x, 0)?, None)
                 };
