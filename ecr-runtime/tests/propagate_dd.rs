@@ -19,7 +19,7 @@ use astro_float::{BigFloat, Consts, RoundingMode};
 use common_phi::{Hc, Hp, to_f64};
 use ecr_runtime::operator::{
     Circulant, Circulant2d, Dense, DenseStatic, Diagonal, LinearOperator, PhiBank, Scalar,
-    SkewPair, Symmetric,
+    SkewPair, Symmetric, Zero,
 };
 use nalgebra::DMatrix;
 
@@ -54,7 +54,7 @@ fn rel_err(hp: &Hp, hi: &[f64], lo: &[f64], r: &[BigFloat]) -> f64 {
 }
 
 #[test]
-fn scalar_and_diagonal_to_1e_30() {
+fn zero_scalar_and_diagonal_to_1e_30() {
     let mut hp = Hp::new(PREC);
     let h = 0.37;
     let entries = [0.0, -1.0, 2.5, -37.0, 1e-9, -1e4, 0.3, -0.7, 5.0];
@@ -85,6 +85,8 @@ fn scalar_and_diagonal_to_1e_30() {
         "Diagonal: normwise relative error {:.1e}",
         rel_err(&hp, &hi, &lo, &r)
     );
+    let (hi, lo) = propagate(&Zero::new(4), h, &y0[..4]);
+    assert_eq!((hi.as_slice(), lo.as_slice()), (&y0[..4], &[0.0; 4][..]));
     for a in [0.0, -2.3, 4.1, -1e3] {
         let (hi, lo) = propagate(&Scalar::new(a, 3).unwrap(), h, &y0[..3]);
         let e = hp.exp(&hp.f(x(a)));

@@ -262,11 +262,12 @@ pub trait PhiBank {
     /// this bank carries the propagator at node i that way; otherwise `false`, outputs
     /// untouched. Kernel banks carry it at τ = 1 (the step's propagator): dense and symmetric
     /// operators up to [`DD_PROPAGATOR_MAX_DIM`] as a double-double matrix (error ~ε² ‖y0‖),
-    /// scalar and diagonal operators as double-double numbers (error ~ε² |y0|), the spectral
-    /// operators (circulants, skew pairs) as `y0 + V (e^{hΛ} − I) V⁻¹ y0` with `e^{hΛ} − I`
-    /// rounded from double-double and f64 transforms (error ~ε ‖(e^{hA} − I) y0‖, plus the
-    /// forward transform's rounding of y0 times `e^{hΛ} − I`; `y0` itself enters exactly, and
-    /// a mode with `e^{hλ} = 1` is kept exactly). Does not allocate.
+    /// scalar and diagonal operators as double-double numbers (error ~ε² |y0|), the zero
+    /// operator's identity exactly, the spectral operators (circulants, skew pairs) as
+    /// `y0 + V (e^{hΛ} − I) V⁻¹ y0` with `e^{hΛ} − I` rounded from double-double and f64
+    /// transforms (error ~ε ‖(e^{hA} − I) y0‖, plus the forward transform's rounding of y0
+    /// times `e^{hΛ} − I`; `y0` itself enters exactly, and a mode with `e^{hλ} = 1` is kept
+    /// exactly). Does not allocate.
     ///
     /// # Panics
     /// If `i ≥ len()` or a slice length differs from `d`.

@@ -40,6 +40,8 @@ pub struct ZeroBank {
     p: usize,
     /// `values[i (p+1) + k]`: the multiple of the identity in slot k at node i.
     values: Vec<f64>,
+    /// Nodes whose propagator (the identity) [`PhiBank::propagate_dd`] reports.
+    carries: Vec<bool>,
 }
 
 impl LinearOperator for Zero {
@@ -75,6 +77,7 @@ impl Zero {
             len: taus.len(),
             p,
             values,
+            carries: (0..taus.len()).map(|i| f.carries_dd(i)).collect(),
         })
     }
 }
@@ -118,6 +121,23 @@ impl PhiBank for ZeroBank {
                 }
             }
         }
+    }
+
+    /// `e^{0} y0 = y0` exactly: `hi = y0`, `lo = 0`.
+    fn propagate_dd(
+        &self,
+        i: usize,
+        y0: &[f64],
+        hi: &mut [f64],
+        lo: &mut [f64],
+        _ws: &mut (),
+    ) -> bool {
+        if !self.carries[i] {
+            return false;
+        }
+        hi.copy_from_slice(y0);
+        lo.fill(0.0);
+        true
     }
 
     fn apply(&self, i: usize, k: usize, x: &[f64], out: &mut [f64], _ws: &mut ()) {
