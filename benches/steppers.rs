@@ -104,7 +104,7 @@ fn bench_problem<G: Fn(&[f64], &mut [f64]) + Copy>(
                 &mut gout,
                 &mut (),
             );
-            bank.propagate_dd(s, black_box(&y0), &mut hi, &mut lo);
+            bank.propagate_dd(s, black_box(&y0), &mut hi, &mut lo, &mut ());
             bank.apply(s, 0, black_box(&lo), &mut hi, &mut ());
         }
         (stages, gout, hi)

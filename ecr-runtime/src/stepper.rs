@@ -1121,7 +1121,7 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             kernel.legendre_moments(g, moments, d);
             let (hi, rest) = tmp.split_at_mut(d);
             let (lo, ec) = rest.split_at_mut(d);
-            if settings.compensated && bank.propagate_dd(s, y0, hi, lo) {
+            if settings.compensated && bank.propagate_dd(s, y0, hi, lo, ws) {
                 // y₁ = e^{hA} y₀ (double-double) + N + e^{hA} c, where N is the nonlinear part and
                 // c the rounding error of the previous y₁ (compensated summation). Rounding the
                 // f64 state the same way every period of an oscillation, and the f64 propagator,

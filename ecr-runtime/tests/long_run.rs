@@ -154,3 +154,59 @@ fn second_order_fpu_ten_million_steps_without_drift() {
         energy_drift_tc(&sys, 5, y0.clone(), steps, settings)
     });
 }
+
+/// Steps of the NLS run (h = 1/200: t = 5000).
+const NLS_STEPS: usize = 1_000_000;
+/// The NLS step size.
+const NLS_H: f64 = 1.0 / 200.0;
+
+/// (max relative energy error, energy drift per step, max relative mass error, mass drift per
+/// step) over `steps` steps of ECrP (r = 3) on the paper's NLS problem, N = 128, with A the
+/// skew pair of the circulant D₂; energy and mass sampled every 1000 steps.
+fn nls_drift(steps: usize, settings: SolverSettings) -> (f64, f64, f64, f64) {
+    let p = ecr_runtime::problems::Nls::new(128).unwrap();
+    let mut st = EcStepper::with_nodes(p.system().unwrap(), 3, 3, NLS_H, settings).unwrap();
+    let mut y = p.initial_value();
+    let mass = |y: &[f64]| y.iter().map(|v| v * v).sum::<f64>();
+    let (e0, m0) = (p.energy(&y), mass(&y));
+    let mut energy: Vec<(f64, f64)> = Vec::new();
+    let mut masses: Vec<(f64, f64)> = Vec::new();
+    let opts = IntegrateOptions {
+        energy_every: 0,
+        observe_every: 1000,
+    };
+    let rep = integrate(
+        &mut st,
+        0.0,
+        steps as f64 * NLS_H,
+        &mut y,
+        opts,
+        |t, y, _| {
+            let k = (t / NLS_H).round();
+            energy.push((k, (p.energy(y) - e0) / e0.abs()));
+            masses.push((k, (mass(y) - m0) / m0));
+        },
+    )
+    .unwrap();
+    assert_eq!(rep.steps, steps);
+    let max = |s: &[(f64, f64)]| s.iter().fold(0.0f64, |m, v| m.max(v.1.abs()));
+    (max(&energy), slope(&energy), max(&masses), slope(&masses))
+}
+
+#[test]
+#[ignore = "1e6 NLS steps: run with --ignored (see the module docs)"]
+fn nls_million_steps_without_drift() {
+    let plain = SolverSettings {
+        compensated: false,
+        ..SolverSettings::default()
+    };
+    let (pe, pde, pm, pdm) = nls_drift(NLS_STEPS / 10, plain);
+    let (e, de, m, dm) = nls_drift(NLS_STEPS, SolverSettings::default());
+    println!(
+        "NLS N = 128, h = 1/200, r = 3, compensated, 1e6 steps: energy max {e:.2e}, drift \
+         {de:.2e} per step; mass max {m:.2e}, drift {dm:.2e} per step. Plain f64 update, 1e5 \
+         steps: energy max {pe:.2e}, drift {pde:.2e}; mass max {pm:.2e}, drift {pdm:.2e}"
+    );
+    assert!(de.abs() <= 1e-18, "NLS energy drift {de:e} per step");
+    assert!(dm.abs() <= 1e-18, "NLS mass drift {dm:e} per step");
+}

@@ -12,6 +12,7 @@ use super::{
     LinearOperator, NodeFunctions, PhiBank, apply_shape, check_bank_args, check_bank_values,
     combine_shape,
 };
+use crate::phi::{cexp_dd, two_sum};
 use crate::{Error, Result};
 
 /// Relative asymmetry of the first column tolerated by [`SkewGenerator::real_spectrum`].
@@ -121,6 +122,7 @@ impl Circulant {
         let mut lambda: Vec<Complex64> = c.iter().map(|&v| Complex64::new(v, 0.0)).collect();
         let mut scratch = basis.scratch();
         basis.forward(&mut lambda, &mut scratch);
+        lambda[0] = Complex64::new(sum_dd(&c), 0.0);
         let mut op = Circulant {
             c,
             lambda,
@@ -157,6 +159,40 @@ impl Circulant {
     }
 }
 
+/// `Σ v` accumulated in double-double and rounded once: the eigenvalue of the constant mode,
+/// which the FFT would round with the other modes' twiddle arithmetic. A kernel that sums to
+/// zero exactly (a conservative difference stencil) then has the eigenvalue 0 exactly.
+pub(super) fn sum_dd(v: &[f64]) -> f64 {
+    let (mut s, mut c) = (0.0, 0.0);
+    for x in v {
+        let (t, e) = two_sum(s, *x);
+        s = t;
+        c += e;
+    }
+    s + c
+}
+
+/// `e^{z} − 1` from double-double, rounded to f64 componentwise, and `e^z` rounded (the
+/// propagator's increment and value for one mode, `z = τhλ`).
+pub(super) fn exp_increment(z: Complex64) -> (Complex64, Complex64) {
+    let (re, im) = cexp_dd(z.re, z.im);
+    let dre = re.add(crate::phi::Dd::new(-1.0));
+    (Complex64::new(dre.hi, im.hi), Complex64::new(re.hi, im.hi))
+}
+
+/// `hi + lo = y0 + Re(w)`, per entry exactly (the increment `w` from an inverse transform).
+#[inline]
+pub(super) fn add_increment(
+    y0: &[f64],
+    w: impl Iterator<Item = f64>,
+    hi: &mut [f64],
+    lo: &mut [f64],
+) {
+    for (((h, l), y), wv) in hi.iter_mut().zip(lo.iter_mut()).zip(y0).zip(w) {
+        (*h, *l) = two_sum(*y, wv);
+    }
+}
+
 /// φ-bank of an operator with complex eigenvalues λ in a [`SpectralBasis`] (the circulants
 /// [`Circulant`] and [`Circulant2d`](super::Circulant2d)): `φ_k(τ_i h λ_m)` per mode;
 /// `combine` costs one forward transform per input vector and one inverse per output block.
@@ -166,6 +202,9 @@ pub struct SpectralBank<B: SpectralBasis> {
     p: usize,
     /// `phis[((i (p+1) + k) n + mode] = φ_k(τ_i h λ_mode)`.
     phis: Vec<Complex64>,
+    /// Per node whose propagator is carried beyond f64 ([`PhiBank::propagate_dd`]): `e^{τ_i h
+    /// λ_mode} − 1` rounded from double-double.
+    increments: Vec<Option<Vec<Complex64>>>,
     basis: B,
 }
 
@@ -198,21 +237,36 @@ impl<B: SpectralBasis> SpectralBank<B> {
         check_bank_args(h, taus)?;
         let n = lambda.len();
         let mut phis = vec![Complex64::new(0.0, 0.0); taus.len() * (p + 1) * n];
+        let mut increments = vec![None; taus.len()];
         let mut buf = vec![Complex64::new(0.0, 0.0); p + 1];
         for (i, tau) in taus.iter().enumerate() {
             let th = tau * h;
+            let mut inc = f.carries_dd(i).then(|| vec![Complex64::new(0.0, 0.0); n]);
             for (mode, l) in lambda.iter().enumerate() {
-                f.complex(i, Complex64::new(th * l.re, th * l.im), &mut buf);
+                let z = Complex64::new(th * l.re, th * l.im);
+                f.complex(i, z, &mut buf);
+                if let Some(inc) = &mut inc {
+                    (inc[mode], buf[0]) = exp_increment(z);
+                }
                 for (k, v) in buf.iter().enumerate() {
                     phis[(i * (p + 1) + k) * n + mode] = *v;
                 }
             }
+            increments[i] = inc;
         }
         check_bank_values(phis.iter().flat_map(|v| [v.re, v.im]))?;
+        check_bank_values(
+            increments
+                .iter()
+                .flatten()
+                .flatten()
+                .flat_map(|v| [v.re, v.im]),
+        )?;
         Ok(SpectralBank {
             len: taus.len(),
             p,
             phis,
+            increments,
             basis: basis.clone(),
         })
     }
@@ -341,6 +395,33 @@ impl<B: SpectralBasis> PhiBank for SpectralBank<B> {
                 *ov = b.re;
             }
         }
+    }
+
+    /// `y0 + V ((e^{hΛ} − I) V⁻¹ y0)`: the increment through f64 transforms, added to y0
+    /// exactly (see [`PhiBank::propagate_dd`]).
+    fn propagate_dd(
+        &self,
+        i: usize,
+        y0: &[f64],
+        hi: &mut [f64],
+        lo: &mut [f64],
+        ws: &mut Self::Workspace,
+    ) -> bool {
+        let Some(inc) = &self.increments[i] else {
+            return false;
+        };
+        let n = self.basis.dim();
+        assert!(y0.len() == n && hi.len() == n && lo.len() == n);
+        for (b, y) in ws.buf.iter_mut().zip(y0) {
+            *b = Complex64::new(*y, 0.0);
+        }
+        self.basis.forward(&mut ws.buf, &mut ws.scratch);
+        for (b, dv) in ws.buf.iter_mut().zip(inc) {
+            *b *= dv;
+        }
+        self.basis.inverse(&mut ws.buf, &mut ws.scratch);
+        add_increment(y0, ws.buf.iter().map(|b| b.re), hi, lo);
+        true
     }
 
     fn apply(&self, i: usize, k: usize, x: &[f64], out: &mut [f64], ws: &mut Self::Workspace) {

@@ -7,7 +7,7 @@ use std::sync::{Arc, Mutex};
 use num_complex::Complex64;
 use rustfft::{Fft, FftPlanner};
 
-use super::circulant::{SpectralBank, SpectralWorkspace, spectral_apply};
+use super::circulant::{SpectralBank, SpectralWorkspace, spectral_apply, sum_dd};
 use super::skew::{SkewGenerator, SpectralBasis};
 use super::{LinearOperator, NodeFunctions};
 use crate::{Error, Result};
@@ -199,6 +199,7 @@ impl Circulant2d {
         let mut lambda: Vec<Complex64> = c.iter().map(|&v| Complex64::new(v, 0.0)).collect();
         let mut scratch = basis.scratch();
         basis.forward(&mut lambda, &mut scratch);
+        lambda[0] = Complex64::new(sum_dd(&c), 0.0);
         let mut op = Circulant2d {
             nx,
             ny,

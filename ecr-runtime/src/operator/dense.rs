@@ -9,10 +9,10 @@ use num_complex::Complex64;
 use super::simple::diagonal_block;
 use super::skew::{SkewGenerator, SpectralBasis};
 use super::{
-    LinearOperator, NodeFunctions, PhiBank, apply_shape, check_bank_scale, check_bank_values,
-    combine_shape,
+    DD_PROPAGATOR_MAX_DIM, LinearOperator, NodeFunctions, PhiBank, apply_shape, check_bank_scale,
+    check_bank_values, combine_shape,
 };
-use crate::phi::{check_symmetric, symmetric_eigen, two_prod, two_sum, validate_matrix};
+use crate::phi::{check_symmetric, expm_dd, symmetric_eigen, two_prod, two_sum, validate_matrix};
 use crate::storage::ensure_allocatable;
 use crate::{Error, Result};
 
@@ -224,7 +224,14 @@ impl PhiBank for DenseBank {
         Some((m + 1) * d * d)
     }
 
-    fn propagate_dd(&self, i: usize, y0: &[f64], hi: &mut [f64], lo: &mut [f64]) -> bool {
+    fn propagate_dd(
+        &self,
+        i: usize,
+        y0: &[f64],
+        hi: &mut [f64],
+        lo: &mut [f64],
+        _ws: &mut (),
+    ) -> bool {
         match &self.lo[i] {
             Some(l) => {
                 matvec_dd(&self.phis[i * (self.p + 1)], l, y0, hi, lo);
@@ -394,7 +401,14 @@ impl<const D: usize> PhiBank for DenseStaticBank<D> {
         Some((m + 1) * d * d)
     }
 
-    fn propagate_dd(&self, i: usize, y0: &[f64], hi: &mut [f64], lo: &mut [f64]) -> bool {
+    fn propagate_dd(
+        &self,
+        i: usize,
+        y0: &[f64],
+        hi: &mut [f64],
+        lo: &mut [f64],
+        _ws: &mut (),
+    ) -> bool {
         match &self.lo[i] {
             Some(l) => {
                 matvec_dd(&self.phis[i * (self.p + 1)], l, y0, hi, lo);
@@ -472,6 +486,9 @@ pub struct SymmetricBank {
     q: Arc<DMatrix<f64>>,
     /// `phis[((i (p+1) + k) d + t] = φ_k(τ_i h λ_t)`.
     phis: Vec<f64>,
+    /// Propagators carried in double-double (`e^{τ_i hA} = hi + lo`, formed from A, not from
+    /// Q, which is orthogonal only to ε), see [`PhiBank::propagate_dd`].
+    props: Vec<Option<(DMatrix<f64>, DMatrix<f64>)>>,
 }
 
 /// Scratch of [`SymmetricBank`]: the transformed vectors.
@@ -523,12 +540,24 @@ impl Symmetric {
             }
         }
         check_bank_values(phis.iter().copied())?;
+        let props = taus
+            .iter()
+            .enumerate()
+            .map(|(i, tau)| {
+                if f.carries_dd(i) && d <= DD_PROPAGATOR_MAX_DIM {
+                    expm_dd(&(&self.a * (tau * h))).map(Some)
+                } else {
+                    Ok(None)
+                }
+            })
+            .collect::<Result<Vec<_>>>()?;
         Ok(SymmetricBank {
             dim: d,
             len: taus.len(),
             p,
             q: Arc::clone(&self.q),
             phis,
+            props,
         })
     }
 }
@@ -583,6 +612,23 @@ impl PhiBank for SymmetricBank {
                 &coef[j * m..(j + 1) * m],
             );
             gemv(o, 1.0, &self.q, &ws.w, 0.0);
+        }
+    }
+
+    fn propagate_dd(
+        &self,
+        i: usize,
+        y0: &[f64],
+        hi: &mut [f64],
+        lo: &mut [f64],
+        _ws: &mut SymmetricWorkspace,
+    ) -> bool {
+        match &self.props[i] {
+            Some((mh, ml)) => {
+                matvec_dd(mh, ml, y0, hi, lo);
+                true
+            }
+            None => false,
         }
     }
 

@@ -111,6 +111,13 @@ pub(crate) struct NodeFunctions {
 /// ([`PhiBank::propagate_dd`]).
 pub const DD_PROPAGATOR_MAX_DIM: usize = 256;
 
+/// Dense kernel banks up to this dimension also take the stage propagators `e^{τ_i hA}` (τ ≠ 1)
+/// from the double-double exponential, rounded to f64: the f64 scaling and squaring leaves
+/// their row sums off by up to 5e−13 at `‖hA‖ = 1e4` (a stage value that does not keep a
+/// conserved mean), the rounded double-double by an ulp. The set-up costs about (d/64)³·0.05 s
+/// per node more, so larger operators keep the f64 algorithm for the stages.
+pub const DD_STAGE_PROPAGATOR_MAX_DIM: usize = 64;
+
 impl NodeFunctions {
     /// φ₀..φ_p.
     pub(crate) fn phi() -> Self {
@@ -118,6 +125,12 @@ impl NodeFunctions {
             legendre: None,
             taus: Vec::new(),
         }
+    }
+
+    /// `true` if the propagator at node i is carried beyond f64 (see
+    /// [`PhiBank::propagate_dd`]): τ = 1 in a Legendre bank.
+    pub(crate) fn carries_dd(&self, i: usize) -> bool {
+        self.legendre.is_some() && self.taus[i] == 1.0
     }
 
     /// `e^x`, `Ψ_0(τ_i, ·) … Ψ_{n−1}(τ_i, ·)` for the nodes `taus`.
@@ -153,7 +166,8 @@ impl NodeFunctions {
 
     /// The `p + 1` matrix functions at `X = τ_i h A`, and the low part of the propagator
     /// `e^X = out[0] + lo` where it is carried in double-double: at τ = 1 in a Legendre bank,
-    /// for `d ≤ DD_PROPAGATOR_MAX_DIM`.
+    /// for `d ≤ DD_PROPAGATOR_MAX_DIM`. The other nodes of a Legendre bank take `out[0]` from
+    /// the double-double exponential too for `d ≤ DD_STAGE_PROPAGATOR_MAX_DIM`.
     #[allow(clippy::type_complexity)]
     pub(crate) fn dense(
         &self,
@@ -164,9 +178,12 @@ impl NodeFunctions {
         match &self.legendre {
             None => Ok((crate::phi::phi_dense(x, p)?, None)),
             Some((k, maps)) => {
-                let (mut out, lo) = if self.taus[i] == 1.0 && x.nrows() <= DD_PROPAGATOR_MAX_DIM {
+                let d = x.nrows();
+                let (mut out, lo) = if self.carries_dd(i) && d <= DD_PROPAGATOR_MAX_DIM {
                     let (hi, lo) = crate::phi::expm_dd(x)?;
                     (vec![hi], Some(lo))
+                } else if d <= DD_STAGE_PROPAGATOR_MAX_DIM {
+                    (vec![crate::phi::expm_dd(x)?.0], None)
                 } else {
                     (crate::phi::phi_dense(x, 0)?, None)
                 };
@@ -243,14 +260,28 @@ pub trait PhiBank {
         combine_shape_checked(self.dim(), self.len(), self.p(), indices, y0, g, coef, out)
     }
 
-    /// `hi + lo = e^{τ_i hA} y0` with the propagator and the product in double-double, if this
-    /// bank carries the propagator at node i that way (dense kernel banks at τ = 1, see
-    /// [`DD_PROPAGATOR_MAX_DIM`]); otherwise `false`, outputs untouched. Does not allocate.
+    /// `hi + lo = e^{τ_i hA} y0` with the propagator and the product carried beyond f64, if
+    /// this bank carries the propagator at node i that way; otherwise `false`, outputs
+    /// untouched. Kernel banks carry it at τ = 1 (the step's propagator): dense and symmetric
+    /// operators up to [`DD_PROPAGATOR_MAX_DIM`] as a double-double matrix (error ~ε² ‖y0‖),
+    /// scalar and diagonal operators as double-double numbers (error ~ε² |y0|), the zero
+    /// operator's identity exactly, the spectral operators (circulants, skew pairs) as
+    /// `y0 + V (e^{hΛ} − I) V⁻¹ y0` with `e^{hΛ} − I` rounded from double-double and f64
+    /// transforms (error ~ε ‖(e^{hA} − I) y0‖, plus the forward transform's rounding of y0
+    /// times `e^{hΛ} − I`; `y0` itself enters exactly, and a mode with `e^{hλ} = 1` is kept
+    /// exactly). Does not allocate.
     ///
     /// # Panics
     /// If `i ≥ len()` or a slice length differs from `d`.
-    fn propagate_dd(&self, i: usize, y0: &[f64], hi: &mut [f64], lo: &mut [f64]) -> bool {
-        let _ = (i, y0, hi, lo);
+    fn propagate_dd(
+        &self,
+        i: usize,
+        y0: &[f64],
+        hi: &mut [f64],
+        lo: &mut [f64],
+        ws: &mut Self::Workspace,
+    ) -> bool {
+        let _ = (i, y0, hi, lo, ws);
         false
     }
 

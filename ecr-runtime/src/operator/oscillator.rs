@@ -494,7 +494,14 @@ impl PhiBank for OscillatorBank {
         (self.basis.is_none()).then_some(4 * (m + 1) * self.n)
     }
 
-    fn propagate_dd(&self, i: usize, y0: &[f64], hi: &mut [f64], lo: &mut [f64]) -> bool {
+    fn propagate_dd(
+        &self,
+        i: usize,
+        y0: &[f64],
+        hi: &mut [f64],
+        lo: &mut [f64],
+        _ws: &mut OscillatorWorkspace,
+    ) -> bool {
         match &self.dd {
             Some(DdPropagator::Modal {
                 node,

@@ -8,7 +8,15 @@ use super::{
     LinearOperator, NodeFunctions, PhiBank, apply_shape, check_bank_args, check_bank_scale,
     check_bank_values, combine_shape,
 };
+use crate::phi::{exp_dd, two_prod, two_sum};
 use crate::{Error, Result};
+
+/// `hi + lo = (eh + el) y` for one entry: the product in double-double.
+#[inline]
+fn mul_dd(eh: f64, el: f64, y: f64) -> (f64, f64) {
+    let (p, e) = two_prod(eh, y);
+    two_sum(p, e + el * y)
+}
 
 /// `A = 0` in dimension `dim`: `φ_k(τhA) = I/k!` (the method reduces to HBVM, DESIGN.md §2).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -32,6 +40,8 @@ pub struct ZeroBank {
     p: usize,
     /// `values[i (p+1) + k]`: the multiple of the identity in slot k at node i.
     values: Vec<f64>,
+    /// Nodes whose propagator (the identity) [`PhiBank::propagate_dd`] reports.
+    carries: Vec<bool>,
 }
 
 impl LinearOperator for Zero {
@@ -67,6 +77,7 @@ impl Zero {
             len: taus.len(),
             p,
             values,
+            carries: (0..taus.len()).map(|i| f.carries_dd(i)).collect(),
         })
     }
 }
@@ -112,6 +123,23 @@ impl PhiBank for ZeroBank {
         }
     }
 
+    /// `e^{0} y0 = y0` exactly: `hi = y0`, `lo = 0`.
+    fn propagate_dd(
+        &self,
+        i: usize,
+        y0: &[f64],
+        hi: &mut [f64],
+        lo: &mut [f64],
+        _ws: &mut (),
+    ) -> bool {
+        if !self.carries[i] {
+            return false;
+        }
+        hi.copy_from_slice(y0);
+        lo.fill(0.0);
+        true
+    }
+
     fn apply(&self, i: usize, k: usize, x: &[f64], out: &mut [f64], _ws: &mut ()) {
         apply_shape(self.dim, self.len, self.p, i, k, x, out);
         let c = self.values[i * (self.p + 1) + k];
@@ -154,6 +182,9 @@ pub struct ScalarBank {
     p: usize,
     /// `phis[i (p+1) + k] = φ_k(τ_i h a)`.
     phis: Vec<f64>,
+    /// The low parts of the propagators carried in double-double (`e^{τ_i h a} = phis[i (p+1)]
+    /// + lo[i]`), see [`PhiBank::propagate_dd`].
+    lo: Vec<Option<f64>>,
 }
 
 impl LinearOperator for Scalar {
@@ -184,8 +215,15 @@ impl Scalar {
     fn bank(&self, h: f64, taus: &[f64], p: usize, f: NodeFunctions) -> Result<ScalarBank> {
         check_bank_scale(h, taus, self.a.abs())?;
         let mut phis = vec![0.0; taus.len() * (p + 1)];
+        let mut lo = vec![None; taus.len()];
         for (i, (tau, row)) in taus.iter().zip(phis.chunks_exact_mut(p + 1)).enumerate() {
-            f.real(i, tau * h * self.a, row);
+            let x = tau * h * self.a;
+            f.real(i, x, row);
+            if f.carries_dd(i) {
+                let e = exp_dd(x);
+                row[0] = e.hi;
+                lo[i] = Some(e.lo);
+            }
         }
         check_bank_values(phis.iter().copied())?;
         Ok(ScalarBank {
@@ -193,6 +231,7 @@ impl Scalar {
             len: taus.len(),
             p,
             phis,
+            lo,
         })
     }
 }
@@ -237,6 +276,25 @@ impl PhiBank for ScalarBank {
                 }
             }
         }
+    }
+
+    fn propagate_dd(
+        &self,
+        i: usize,
+        y0: &[f64],
+        hi: &mut [f64],
+        lo: &mut [f64],
+        _ws: &mut (),
+    ) -> bool {
+        let Some(el) = self.lo[i] else {
+            return false;
+        };
+        assert!(y0.len() == self.dim && hi.len() == self.dim && lo.len() == self.dim);
+        let eh = self.phis[i * (self.p + 1)];
+        for ((h, l), y) in hi.iter_mut().zip(lo.iter_mut()).zip(y0) {
+            (*h, *l) = mul_dd(eh, el, *y);
+        }
+        true
     }
 
     fn apply(&self, i: usize, k: usize, x: &[f64], out: &mut [f64], _ws: &mut ()) {
@@ -288,6 +346,9 @@ pub struct DiagonalBank {
     p: usize,
     /// `phis[((i (p+1) + k) d + t] = φ_k(τ_i h d_t)`.
     phis: Vec<f64>,
+    /// The low parts of the propagators carried in double-double (`e^{τ_i h d_t} =
+    /// phis[i (p+1) d + t] + lo[i][t]`), see [`PhiBank::propagate_dd`].
+    lo: Vec<Option<Vec<f64>>>,
 }
 
 impl LinearOperator for Diagonal {
@@ -323,15 +384,23 @@ impl Diagonal {
         )?;
         let d = self.diag.len();
         let mut phis = vec![0.0; taus.len() * (p + 1) * d];
+        let mut lo = vec![None; taus.len()];
         let mut buf = vec![0.0; p + 1];
         for (i, tau) in taus.iter().enumerate() {
             let th = tau * h;
+            let mut low = f.carries_dd(i).then(|| vec![0.0; d]);
             for (t, dv) in self.diag.iter().enumerate() {
                 f.real(i, th * dv, &mut buf);
+                if let Some(l) = &mut low {
+                    let e = exp_dd(th * dv);
+                    buf[0] = e.hi;
+                    l[t] = e.lo;
+                }
                 for (k, v) in buf.iter().enumerate() {
                     phis[(i * (p + 1) + k) * d + t] = *v;
                 }
             }
+            lo[i] = low;
         }
         check_bank_values(phis.iter().copied())?;
         Ok(DiagonalBank {
@@ -339,6 +408,7 @@ impl Diagonal {
             len: taus.len(),
             p,
             phis,
+            lo,
         })
     }
 }
@@ -397,6 +467,26 @@ impl PhiBank for DiagonalBank {
             let f = &self.phis[i * stride..(i + 1) * stride];
             diagonal_block(o, f, d, y0, g, &coef[j * m..(j + 1) * m]);
         }
+    }
+
+    fn propagate_dd(
+        &self,
+        i: usize,
+        y0: &[f64],
+        hi: &mut [f64],
+        lo: &mut [f64],
+        _ws: &mut (),
+    ) -> bool {
+        let Some(el) = &self.lo[i] else {
+            return false;
+        };
+        let d = self.dim;
+        assert!(y0.len() == d && hi.len() == d && lo.len() == d);
+        let eh = &self.phis[i * (self.p + 1) * d..(i * (self.p + 1) + 1) * d];
+        for ((((h, l), y), a), b) in hi.iter_mut().zip(lo.iter_mut()).zip(y0).zip(eh).zip(el) {
+            (*h, *l) = mul_dd(*a, *b, *y);
+        }
+        true
     }
 
     fn apply(&self, i: usize, k: usize, x: &[f64], out: &mut [f64], _ws: &mut ()) {

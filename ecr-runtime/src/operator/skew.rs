@@ -4,7 +4,7 @@ use std::ops::Range;
 
 use num_complex::Complex64;
 
-use super::circulant::spectral_block;
+use super::circulant::{add_increment, exp_increment, spectral_block};
 use super::{
     LinearOperator, NodeFunctions, PhiBank, apply_shape, check_bank_args, check_bank_values,
     combine_shape,
@@ -87,6 +87,9 @@ pub struct SkewPairBank<B: SpectralBasis> {
     p: usize,
     /// `phis[((i (p+1) + k) n + mode] = φ_k(i τ_i h λ_mode)`.
     phis: Vec<Complex64>,
+    /// Per node whose propagator is carried beyond f64 ([`PhiBank::propagate_dd`]): `e^{i τ_i
+    /// h λ_mode} − 1` rounded from double-double cosine and sine.
+    increments: Vec<Option<Vec<Complex64>>>,
     basis: B,
 }
 
@@ -138,22 +141,37 @@ impl<C: SkewGenerator> SkewPair<C> {
         check_bank_args(h, taus)?;
         let n = self.lambda.len();
         let mut phis = vec![Complex64::new(0.0, 0.0); taus.len() * (p + 1) * n];
+        let mut increments = vec![None; taus.len()];
         let mut buf = vec![Complex64::new(0.0, 0.0); p + 1];
         for (i, tau) in taus.iter().enumerate() {
             let th = tau * h;
+            let mut inc = f.carries_dd(i).then(|| vec![Complex64::new(0.0, 0.0); n]);
             for (mode, l) in self.lambda.iter().enumerate() {
-                f.complex(i, Complex64::new(0.0, th * l), &mut buf);
+                let z = Complex64::new(0.0, th * l);
+                f.complex(i, z, &mut buf);
+                if let Some(inc) = &mut inc {
+                    (inc[mode], buf[0]) = exp_increment(z);
+                }
                 for (k, v) in buf.iter().enumerate() {
                     phis[(i * (p + 1) + k) * n + mode] = *v;
                 }
             }
+            increments[i] = inc;
         }
         check_bank_values(phis.iter().flat_map(|v| [v.re, v.im]))?;
+        check_bank_values(
+            increments
+                .iter()
+                .flatten()
+                .flatten()
+                .flat_map(|v| [v.re, v.im]),
+        )?;
         Ok(SkewPairBank {
             n,
             len: taus.len(),
             p,
             phis,
+            increments,
             basis: self.basis.clone(),
         })
     }
@@ -212,6 +230,37 @@ impl<B: SpectralBasis> PhiBank for SkewPairBank<B> {
                 *b = w.im;
             }
         }
+    }
+
+    /// `y0 + (increment through the basis)`, as for the circulant banks: with `u = p + iq`,
+    /// `u0 + V ((e^{ihΛ} − I) V⁻¹ u0)`, added to y0 exactly (see [`PhiBank::propagate_dd`]).
+    fn propagate_dd(
+        &self,
+        i: usize,
+        y0: &[f64],
+        hi: &mut [f64],
+        lo: &mut [f64],
+        ws: &mut Self::Workspace,
+    ) -> bool {
+        let Some(inc) = &self.increments[i] else {
+            return false;
+        };
+        let n = self.n;
+        assert!(y0.len() == 2 * n && hi.len() == 2 * n && lo.len() == 2 * n);
+        let (yp, yq) = y0.split_at(n);
+        for ((b, a), c) in ws.buf.iter_mut().zip(yp).zip(yq) {
+            *b = Complex64::new(*a, *c);
+        }
+        self.basis.forward(&mut ws.buf, &mut ws.scratch);
+        for (b, dv) in ws.buf.iter_mut().zip(inc) {
+            *b *= dv;
+        }
+        self.basis.inverse(&mut ws.buf, &mut ws.scratch);
+        let (hp, hq) = hi.split_at_mut(n);
+        let (lp, lq) = lo.split_at_mut(n);
+        add_increment(yp, ws.buf.iter().map(|b| b.re), hp, lp);
+        add_increment(yq, ws.buf.iter().map(|b| b.im), hq, lq);
+        true
     }
 
     fn apply(&self, i: usize, k: usize, x: &[f64], out: &mut [f64], ws: &mut Self::Workspace) {

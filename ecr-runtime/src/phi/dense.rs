@@ -228,9 +228,38 @@ pub(crate) fn symmetric_eigen(a: &DMatrix<f64>) -> Result<(Vec<f64>, DMatrix<f64
     }
     let sym = (a + a.transpose()) * 0.5;
     let max_iter = 1000 * d.max(10);
-    let eig = nalgebra::SymmetricEigen::try_new(sym, f64::EPSILON, max_iter)
+    let eig = nalgebra::SymmetricEigen::try_new(sym.clone(), f64::EPSILON, max_iter)
         .ok_or_else(|| Error::Numerical("symmetric eigendecomposition did not converge".into()))?;
-    Ok((eig.eigenvalues.iter().copied().collect(), eig.eigenvectors))
+    let q = eig.eigenvectors;
+    let lambda = q
+        .column_iter()
+        .map(|c| rayleigh_dd(&sym, c.as_slice()))
+        .collect();
+    Ok((lambda, q))
+}
+
+/// The Rayleigh quotient `qᵀAq` (‖q‖ = 1) with `Aq` and the dot product in double-double,
+/// rounded once. For a computed eigenvector q (an exact eigenvector of `A + E`, `‖E‖ ≈ ε‖A‖`)
+/// it is within `O(ε²‖A‖²/gap)` of the eigenvalue, where the eigensolver's own value is only
+/// within `O(ε‖A‖)`: a zero eigenvalue (a conserved quantity) stays 0 to ~ε²‖A‖ instead of
+/// ~ε‖A‖, so `e^{hλ}` does not decay it at ‖hA‖ ≫ 1.
+fn rayleigh_dd(a: &DMatrix<f64>, q: &[f64]) -> f64 {
+    let (mut s, mut c) = (0.0, 0.0);
+    for (r, qr) in q.iter().enumerate() {
+        // (Aq)_r = rh + rl by Dot2.
+        let (mut rh, mut rl) = (0.0, 0.0);
+        for (k, qk) in q.iter().enumerate() {
+            let (p, e) = two_prod(a[(r, k)], *qk);
+            let (t, u) = two_sum(rh, p);
+            rh = t;
+            rl += u + e;
+        }
+        let (p, e) = two_prod(*qr, rh);
+        let (t, u) = two_sum(s, p);
+        s = t;
+        c += u + e + qr * rl;
+    }
+    s + c
 }
 
 /// φ₀(A), …, φ_p(A) for a symmetric matrix via `A = QΛQᵀ`, `φ_k(A) = Q φ_k(Λ) Qᵀ`.

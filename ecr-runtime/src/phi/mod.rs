@@ -31,6 +31,7 @@
 //! * Symmetric matrices ([`phi_symmetric`]): eigendecomposition `A = QΛQᵀ`,
 //!   `φ_k(A) = Q φ_k(Λ) Qᵀ` with the scalar functions.
 
+mod dd;
 mod dense;
 mod legendre;
 mod scalar;
@@ -39,6 +40,7 @@ pub use dense::{phi_dense, phi_dense_static, phi_symmetric};
 pub use legendre::LegendreKernels;
 pub use scalar::{phi_complex, phi_diagonal, phi_real, phi_trig};
 
+pub(crate) use dd::{Dd, cexp_dd, exp_dd};
 pub(crate) use dense::{
     check_symmetric, expm_dd, symmetric_eigen, two_prod, two_sum, validate as validate_matrix,
 };
