@@ -22,9 +22,9 @@
 //! moments and a `combine` (`rsd + s(r+1)d²`); [`fuses_stages`] decides. The fused matrices
 //! are bounded sums of bounded terms: no cancellation for any r.
 //!
-//! Long runs: where the bank carries the propagator in double-double ([`PhiBank::propagate_dd`]:
-//! dense operators up to `DD_PROPAGATOR_MAX_DIM`), the new state is `e^{hA} y₀` in
-//! double-double plus the nonlinear part plus `e^{hA} c`, where `c` is the rounding error of
+//! Long runs: where the bank carries the propagator beyond f64 ([`PhiBank::propagate_dd`]:
+//! every operator kind, dense and symmetric ones up to `DD_PROPAGATOR_MAX_DIM`), the new
+//! state is `e^{hA} y₀` in double-double plus the nonlinear part plus `e^{hA} c`, where `c` is the rounding error of
 //! the previous state (compensated summation; valid while the caller passes back the state the
 //! last step returned). An f64 propagator and an f64 state rounded the same way every period
 //! of an oscillation make the energy drift linearly (Duffing, r = 3, h = 0.01: 7.5e−17 per
