@@ -47,7 +47,7 @@
 use std::ops::Range;
 use std::sync::Arc;
 
-use nalgebra::DMatrix;
+use nalgebra::{DMatrix, Matrix2};
 use num_complex::Complex64;
 
 use super::dense::{gemv, gemv_tr, matvec_dd};
@@ -217,11 +217,11 @@ struct Buf {
 /// The double-double propagator of an [`OscillatorBank`] at its node τ = 1.
 #[derive(Clone, Debug, PartialEq)]
 enum DdPropagator {
-    /// Per mode, the 2 × 2 block `[[a, b], [c, d]]` (row-major), high and low parts.
+    /// Per mode, the 2 × 2 block, high and low parts.
     Modal {
         node: usize,
-        hi: Vec<[f64; 4]>,
-        lo: Vec<[f64; 4]>,
+        hi: Vec<Matrix2<f64>>,
+        lo: Vec<Matrix2<f64>>,
     },
     /// The `2n × 2n` matrix (dense Ω).
     Dense {
@@ -356,8 +356,8 @@ impl Oscillator {
                 let nu = self.damping.as_ref().map_or(0.0, |d| d[l]);
                 let x = DMatrix::from_row_slice(2, 2, &[0.0, h, -h * lam, h * nu]);
                 let (eh, el) = expm_dd(&x)?;
-                hi.push([eh[(0, 0)], eh[(0, 1)], eh[(1, 0)], eh[(1, 1)]]);
-                lo.push([el[(0, 0)], el[(0, 1)], el[(1, 0)], el[(1, 1)]]);
+                hi.push(Matrix2::from_column_slice(eh.as_slice()));
+                lo.push(Matrix2::from_column_slice(el.as_slice()));
             }
             return Ok(Some(DdPropagator::Modal { node, hi, lo }));
         }
@@ -510,20 +510,9 @@ impl PhiBank for OscillatorBank {
             }) if *node == i => {
                 let n = self.n;
                 for l in 0..n {
-                    let x = [y0[l], y0[n + l]];
-                    for (row, at) in [(0, l), (1, n + l)] {
-                        let (mut s, mut c) = (0.0, 0.0);
-                        for (col, xv) in x.iter().enumerate() {
-                            let e = 2 * row + col;
-                            let (pr, pe) = crate::phi::two_prod(mh[l][e], *xv);
-                            let (t, q) = crate::phi::two_sum(s, pr);
-                            s = t;
-                            c += q + pe + ml[l][e] * xv;
-                        }
-                        let (h, lw) = crate::phi::two_sum(s, c);
-                        hi[at] = h;
-                        lo[at] = lw;
-                    }
+                    let (mut h, mut w) = ([0.0; 2], [0.0; 2]);
+                    matvec_dd(&mh[l], &ml[l], &[y0[l], y0[n + l]], &mut h, &mut w);
+                    (hi[l], hi[n + l], lo[l], lo[n + l]) = (h[0], h[1], w[0], w[1]);
                 }
                 true
             }
