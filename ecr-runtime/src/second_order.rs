@@ -621,6 +621,8 @@ impl<S: SecondOrderSystem, K: Kernel> TcStepper<S, K> {
             residual,
             g_evals,
             converged,
+            jacobian_evals: 0,
+            newton_refreshes: 0,
         })
     }
 }
