@@ -1462,7 +1462,7 @@ fn kernel_coefficients(h: f64, taus: &[f64], r: usize) -> Vec<f64> {
 
 #[cfg(test)]
 mod tests {
-    use super::{all_finite, sweeps_converged};
+    use super::{all_finite, sweeps_converged, sweeps_converged_scaled};
 
     #[test]
     fn finiteness_of_every_entry() {
@@ -1507,5 +1507,33 @@ mod tests {
         // NaN is never convergence (the stepper reports divergence).
         assert!(!sweeps_converged(f64::NAN, 1e-3, TOL));
         assert!(!sweeps_converged(f64::NAN, inf, TOL));
+    }
+
+    #[test]
+    fn scaled_stopping_rule() {
+        let inf = f64::INFINITY;
+        // With the global measure equal to the scaled one it is the plain rule.
+        for (r, p) in [
+            (1e-16, inf),
+            (1e-14, 2e-14),
+            (8e-16, 5e-16),
+            (6e-16, 1e-15),
+            (0.3, 0.2),
+        ] {
+            assert_eq!(
+                sweeps_converged_scaled(r, p, r, TOL),
+                sweeps_converged(r, p, TOL),
+                "{r:e} {p:e}"
+            );
+        }
+        // A component whose own scale sees only noise (0.3, not contracting): stagnation once
+        // the whole state is at round-off, not before.
+        assert!(sweeps_converged_scaled(0.3, 0.2, 1e-16, TOL));
+        assert!(!sweeps_converged_scaled(0.3, 0.2, 1e-12, TOL));
+        // Still contracting in its own scale: go on, even at global round-off.
+        assert!(!sweeps_converged_scaled(1e-9, 1e-6, 1e-17, TOL));
+        // Converged in its own scale.
+        assert!(sweeps_converged_scaled(1e-17, 1e-15, 1e-30, TOL));
+        assert!(!sweeps_converged_scaled(f64::NAN, 1e-3, f64::NAN, TOL));
     }
 }
