@@ -265,29 +265,30 @@ fn newton_storage_that_cannot_exist_is_an_error_naming_its_size() {
     assert!(EcStepper::with_nodes(system, 2, 2, 0.1, newton).is_ok());
 }
 
-/// `y' = κ D₂ y + 50 (y − y³)` on N = 64 periodic points of [0, 1), κ chosen so that
+/// `y' = κ D₂ y + 50 (y − y³)` on n periodic points of [0, 1), κ chosen so that
 /// ‖A‖∞ = 4κ/Δx² = 1e5 (‖hA‖∞ = 1e4 at h = 0.1); a gradient flow of
 /// `U(y) = Σ [κ/2 ((y_{i+1} − y_i)/Δx)² + 12.5 (y_i² − 1)²] Δx`.
 struct ReactionDiffusion {
     op: Circulant,
+    n: usize,
     dx: f64,
     kappa: f64,
     analytic_jacobian: bool,
 }
 
-const RD_N: usize = 64;
 const RD_NORM_A: f64 = 1e5;
 
 impl ReactionDiffusion {
-    fn new(analytic_jacobian: bool) -> Result<Self> {
-        let dx = 1.0 / RD_N as f64;
+    fn new(n: usize, analytic_jacobian: bool) -> Result<Self> {
+        let dx = 1.0 / n as f64;
         let kappa = RD_NORM_A * dx * dx / 4.0;
-        let mut c = vec![0.0; RD_N];
+        let mut c = vec![0.0; n];
         c[0] = -2.0 * kappa / (dx * dx);
         c[1] = kappa / (dx * dx);
-        c[RD_N - 1] = kappa / (dx * dx);
+        c[n - 1] = kappa / (dx * dx);
         Ok(ReactionDiffusion {
             op: Circulant::new(c)?,
+            n,
             dx,
             kappa,
             analytic_jacobian,
@@ -299,17 +300,18 @@ impl ReactionDiffusion {
         4.0 * self.kappa / (self.dx * self.dx)
     }
 
-    /// 0.3 + 0.7 cos 2πx: smooth, values in [−0.4, 1].
-    fn initial_value(&self) -> Vec<f64> {
-        (0..RD_N)
-            .map(|i| 0.3 + 0.7 * (2.0 * std::f64::consts::PI * i as f64 * self.dx).cos())
+    /// a + b cos 2πx.
+    fn initial_value(&self, a: f64, b: f64) -> Vec<f64> {
+        (0..self.n)
+            .map(|i| a + b * (2.0 * std::f64::consts::PI * i as f64 * self.dx).cos())
             .collect()
     }
 
     fn lyapunov(&self, u: &[f64]) -> f64 {
         let mut e = 0.0;
-        for i in 0..RD_N {
-            let ux = (u[(i + 1) % RD_N] - u[i]) / self.dx;
+        let n = self.n;
+        for i in 0..n {
+            let ux = (u[(i + 1) % n] - u[i]) / self.dx;
             e += 0.5 * self.kappa * ux * ux + 12.5 * (u[i] * u[i] - 1.0).powi(2);
         }
         e * self.dx
@@ -349,12 +351,14 @@ fn solver(solver: StageSolver) -> SolverSettings {
 fn newton_refreshes_its_jacobian_where_simplified_newton_diverges() {
     let h = 0.1;
     let steps = 10;
-    let p = ReactionDiffusion::new(true).unwrap();
+    let n = 64;
+    let p = ReactionDiffusion::new(n, true).unwrap();
     let stiffness = h * p.norm_a();
     assert!((stiffness - 1e4).abs() <= 1e-9, "‖hA‖ = {stiffness}");
-    let u0 = p.initial_value();
+    // 0.3 + 0.7 cos 2πx: smooth, values in [−0.4, 1].
+    let u0 = p.initial_value(0.3, 0.7);
     println!(
-        "‖hA‖∞ = {stiffness:e}, h = {h}, N = {RD_N}, U(y₀) = {:.6}",
+        "‖hA‖∞ = {stiffness:e}, h = {h}, N = {n}, U(y₀) = {:.6}",
         p.lyapunov(&u0)
     );
 
@@ -375,7 +379,7 @@ fn newton_refreshes_its_jacobian_where_simplified_newton_diverges() {
     // Newton: the step-1 iteration stops contracting with J(y₀), refreshes the Jacobian at the
     // stages, and converges; U does not increase.
     for analytic in [true, false] {
-        let p = ReactionDiffusion::new(analytic).unwrap();
+        let p = ReactionDiffusion::new(n, analytic).unwrap();
         let mut st = EcStepper::with_nodes(&p, 2, 2, h, solver(StageSolver::Newton)).unwrap();
         let mut u = u0.clone();
         let mut prev = p.lyapunov(&u);
@@ -413,9 +417,29 @@ fn newton_refreshes_its_jacobian_where_simplified_newton_diverges() {
             },
             line.join(" "),
             reports.iter().map(|r| r.g_evals).sum::<usize>(),
-            u.iter().sum::<f64>() / RD_N as f64
+            u.iter().sum::<f64>() / n as f64
         );
     }
+}
+
+/// The limit of undamped Newton: with 128 points (‖hA‖ still 1e4) and y₀ = 0.1 + 0.9 cos 2πx,
+/// the first iterate overshoots far (g'(y₀) = 50 where y₀ ≈ 0) and the refreshed iteration
+/// does not get back within the sweep limit; the step is an error naming it, the state is left
+/// as it was. From 0.3 + 0.7 cos 2πx it converges, after many refreshes.
+#[test]
+fn newton_from_a_poor_start_is_an_error_not_a_wrong_step() {
+    let p = ReactionDiffusion::new(128, true).unwrap();
+    let mut st = EcStepper::with_nodes(&p, 2, 2, 0.1, solver(StageSolver::Newton)).unwrap();
+    let u0 = p.initial_value(0.1, 0.9);
+    let mut u = u0.clone();
+    let err = st.step(&mut u).unwrap_err();
+    println!("N = 128, y₀ = 0.1 + 0.9 cos 2πx: {err}");
+    assert!(matches!(err, Error::NoConvergence { .. }), "{err}");
+    assert_eq!(u, u0);
+    let mut u = p.initial_value(0.3, 0.7);
+    let rep = st.step(&mut u).unwrap();
+    println!("N = 128, y₀ = 0.3 + 0.7 cos 2πx: {rep:?}");
+    assert!(rep.converged && rep.newton_refreshes >= 1, "{rep:?}");
 }
 
 #[test]
