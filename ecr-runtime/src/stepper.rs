@@ -222,7 +222,7 @@ pub enum StageSolver {
     /// its LU factorisation (allocated per step, and per refresh), s² products of d × d
     /// matrices; once per step size, the kernel matrices from `s·r·d` bank applications.
     /// Meant for moderate d: construction fails with an error naming the size when the
-    /// `2s²d² + 2d² + 2sd` numbers cannot be
+    /// `2s²d² + 2d² + 3sd` numbers cannot be
     /// allocated. ECrP only: the other steppers reject it.
     Newton,
     /// Simplified Newton only: the Jacobian frozen at y₀ for the whole step, never refreshed
@@ -661,15 +661,15 @@ pub struct Stepper<K: Kernel, S: System, B: Buffers> {
 }
 
 /// The most numbers the Newton iteration holds at once: the stage matrices and the Newton
-/// matrix (s²d² each), the Jacobian and one d × d block product, the copies of the stages and
-/// of g there (s·d each); `None` on overflow.
+/// matrix (s²d² each), the Jacobian and one d × d block product, and at a refresh the
+/// right-hand side and copies of the stages and of g there (s·d each); `None` on overflow.
 fn newton_entries(s: usize, d: usize) -> Option<usize> {
     let dd = d.checked_mul(d)?;
     s.checked_mul(s)?
         .checked_mul(dd)?
         .checked_add(dd)?
-        .checked_add(s.checked_mul(d)?)?
-        .checked_mul(2)
+        .checked_mul(2)?
+        .checked_add(s.checked_mul(d)?.checked_mul(3)?)
 }
 
 /// What the Newton iteration keeps: the stage matrices for the step size and scratch for the
@@ -677,10 +677,6 @@ fn newton_entries(s: usize, d: usize) -> Option<usize> {
 struct NewtonState {
     /// The stage matrices `∂Φ_i/∂g_k` ([`stage_matrices`]).
     q: Vec<f64>,
-    /// The stages and g there (s·d each), copied for a refresh of the Jacobian (so that the
-    /// stage arrays of fixed-size buffers are not handed to a function that is not inlined).
-    ys: Vec<f64>,
-    gs: Vec<f64>,
     jac: JacobianScratch,
 }
 
@@ -694,12 +690,10 @@ struct JacobianScratch {
 }
 
 impl NewtonState {
-    /// With the stage matrices `q` of the step size, for s stages of dimension d.
-    fn new(q: Vec<f64>, s: usize, d: usize) -> Self {
+    /// With the stage matrices `q` of the step size, for dimension d.
+    fn new(q: Vec<f64>, d: usize) -> Self {
         NewtonState {
             q,
-            ys: vec![0.0; s * d],
-            gs: vec![0.0; s * d],
             jac: JacobianScratch {
                 jac: nalgebra::DMatrix::zeros(d, d),
                 yp: vec![0.0; d],
@@ -796,14 +790,16 @@ fn factor_newton_matrix(nm: nalgebra::DMatrix<f64>) -> Result<NewtonLu> {
     Ok(lu)
 }
 
-/// The Newton matrix at the stages `nw.ys` (g there in `nw.gs`), block (i, k) = `δ_ik I −
-/// Q_ik J(Y_k)`, factorised; and the evaluations of g its Jacobians took. Off the hot path:
-/// only when the simplified iteration stops contracting.
+/// The Newton matrix at the stages `ys` (g there: `gs`), block (i, k) = `δ_ik I − Q_ik
+/// J(Y_k)`, factorised; and the evaluations of g its Jacobians took. Off the hot path: only
+/// when the simplified iteration stops contracting.
 #[cold]
 #[inline(never)]
 fn refreshed_newton_lu<S: System>(
     system: &S,
     nw: &mut NewtonState,
+    ys: &[f64],
+    gs: &[f64],
     s: usize,
     d: usize,
     scratch: &mut [f64],
@@ -814,8 +810,8 @@ fn refreshed_newton_lu<S: System>(
         let at = k * d..(k + 1) * d;
         evals += jacobian_into(
             system,
-            &nw.ys[at.clone()],
-            Some(&nw.gs[at]),
+            &ys[at.clone()],
+            Some(&gs[at]),
             &mut nw.jac,
             scratch,
             "Jacobian of g at a stage",
@@ -825,57 +821,40 @@ fn refreshed_newton_lu<S: System>(
     Ok((factor_newton_matrix(nm)?, evals))
 }
 
-/// `new = old + (I − Φ')⁻¹ rhs` with the factorised Newton matrix (`rhs = Φ(old) − old`).
+/// `new = old + (I − Φ')⁻¹ rhs` with the factorised Newton matrix (`rhs = Φ(old) − old`);
+/// returns the global measure of that update, ‖new − old‖∞ / max(1, ‖new‖∞) (NaN or ∞ if
+/// it is not finite).
 #[inline]
-fn newton_update(lu: &NewtonLu, rhs: &nalgebra::DVector<f64>, old: &[f64], new: &mut [f64]) {
+fn newton_apply(lu: &NewtonLu, rhs: &nalgebra::DVector<f64>, old: &[f64], new: &mut [f64]) -> f64 {
     let delta = lu.solve(rhs);
     let delta = delta.as_ref().unwrap_or(rhs);
+    let (mut diff, mut mag) = (0.0_f64, 1.0_f64);
     for ((n, y), dl) in new.iter_mut().zip(old).zip(delta.iter()) {
         *n = y + dl;
+        diff = diff.max(dl.abs());
+        mag = mag.max(n.abs());
+    }
+    if new.iter().all(|v| v.is_finite()) {
+        diff / mag
+    } else {
+        f64::NAN
     }
 }
 
-/// The stage update `new − old` measured for the stopping rule and in the global scale:
-/// `(scaled, global)`, with `global = ‖new − old‖∞ / max(1, ‖new‖∞)` and `scaled` the same
-/// (`atol = None`, [`StageScale::Global`]) or `max_i |new_i − old_i| / max(|new_i|, atol)`.
-/// `global` is NaN if a new stage is NaN or infinite (`scaled` then means nothing).
-///
-/// max |Yᵢ| is taken over the bit patterns: for non-negative floats they order as the values
-/// do, and |NaN| orders above ∞, so a NaN or infinite stage makes the residual NaN (`f64::max`
-/// would skip NaN); the update's max can skip it (comparisons are cheaper). The scale is
-/// chosen once per call, outside the loops.
-#[inline(always)]
-fn stage_update(new: &[f64], old: &[f64], atol: Option<f64>) -> (f64, f64) {
-    let (mut diff, mut mag) = (0.0_f64, 1.0_f64.to_bits());
-    match atol {
-        None => {
-            for (a, b) in new.iter().zip(old) {
-                let t = (a - b).abs();
-                if t > diff {
-                    diff = t;
-                }
-                mag = mag.max(a.abs().to_bits());
-            }
-            let global = diff / f64::from_bits(mag);
-            (global, global)
-        }
-        Some(atol) => {
-            // Division-free test: t / scale > rel ⇔ t > rel · scale (scale ≥ atol > 0).
-            let mut rel = 0.0_f64;
-            for (a, b) in new.iter().zip(old) {
-                let t = (a - b).abs();
-                if t > diff {
-                    diff = t;
-                }
-                mag = mag.max(a.abs().to_bits());
-                let scale = a.abs().max(atol);
-                if t > rel * scale {
-                    rel = t / scale;
-                }
-            }
-            (rel, diff / f64::from_bits(mag))
+/// `max_i |new_i − old_i| / max(|new_i|, atol)` ([`StageScale::PerComponent`]; `atol` > 0),
+/// division-free per component: `t / scale > rel ⇔ t > rel · scale`. Meaningless if a new
+/// stage is not finite (the global measure, computed beside it, catches that).
+#[inline]
+fn per_component_update(new: &[f64], old: &[f64], atol: f64) -> f64 {
+    let mut rel = 0.0_f64;
+    for (a, b) in new.iter().zip(old) {
+        let t = (a - b).abs();
+        let scale = a.abs().max(atol);
+        if t > rel * scale {
+            rel = t / scale;
         }
     }
+    rel
 }
 
 /// The stage matrices of ECrP: `M_ik = Σ_j coef_ij ℓ_jk Ψ_j(cᵢ, hA)` (`coef_ij = h cᵢ (2j+1)`,
@@ -1031,7 +1010,7 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
         if settings.solver != StageSolver::FixedPoint {
             let (s, d) = (kernel.s(), system.dim());
             ensure_allocatable(
-                &format!("Newton for d = {d}, s = {s} (2s²d² + 2d² + 2sd numbers)"),
+                &format!("Newton for d = {d}, s = {s} (2s²d² + 2d² + 3sd numbers)"),
                 newton_entries(s, d),
             )?;
         }
@@ -1156,6 +1135,23 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
     /// the step, or h is unstable for it), [`Error::NoConvergence`] if the sweeps do not
     /// converge and [`SweepLimit::Error`] is set. On error, y is unchanged.
     pub fn step(&mut self, y: &mut [f64]) -> Result<StepReport> {
+        // One compiled step per stage solver kind and scale, so that the fixed-point sweeps in
+        // the global scale (the small steppers' hot path) carry no code of the others.
+        let newton = self.settings.solver != StageSolver::FixedPoint;
+        match (newton, self.settings.scale) {
+            (false, StageScale::Global) => self.step_with::<false, false>(y),
+            (false, StageScale::PerComponent { .. }) => self.step_with::<false, true>(y),
+            (true, StageScale::Global) => self.step_with::<true, false>(y),
+            (true, StageScale::PerComponent { .. }) => self.step_with::<true, true>(y),
+        }
+    }
+
+    /// [`step`](Self::step) with Newton (`NEWTON`, else fixed-point sweeps) and the
+    /// per-component scale (`PER_COMPONENT`, else the global one), as the settings say.
+    fn step_with<const NEWTON: bool, const PER_COMPONENT: bool>(
+        &mut self,
+        y: &mut [f64],
+    ) -> Result<StepReport> {
         let d = self.buf.dim();
         let (s, m) = (self.kernel.s(), self.kernel.r());
         if y.len() != d {
@@ -1203,14 +1199,14 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             let extrapolate = continuing && settings.predictor == Predictor::Extrapolate;
             let mut jacobian_evals = 0;
             let mut jacobian_g_evals = 0;
-            let mut lu = if settings.solver != StageSolver::FixedPoint {
+            let mut lu = if NEWTON {
                 let nw = newton.get_or_insert_with(|| {
                     // The fused sweeps' stage matrices where there are some (the same numbers).
                     let q = match fused {
                         Some(q) => q.clone(),
                         None => stage_matrices(&*kernel, &*bank, coef, ws, d),
                     };
-                    Box::new(NewtonState::new(q, s, d))
+                    Box::new(NewtonState::new(q, d))
                 });
                 // The Jacobian of g at y₀: the system's, or forward differences.
                 jacobian_g_evals = jacobian_into(
@@ -1234,8 +1230,8 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             let refresh = settings.solver == StageSolver::Newton;
             let mut newton_refreshes = 0;
             let atol = match settings.scale {
-                StageScale::Global => None,
-                StageScale::PerComponent { atol } => Some(atol),
+                StageScale::PerComponent { atol } => atol,
+                StageScale::Global => 1.0,
             };
             // g at every stage. Not checked here: a non-finite g makes the next sweep's stages
             // non-finite, which the residual catches, or, after the last sweep, y₁ (both then
@@ -1292,6 +1288,7 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             g_evals += jacobian_g_evals;
             let mut sweeps = 0;
             // The last update in the stopping rule's scale and in the global one.
+            // (In the global scale the two are the same number: only `previous` is kept.)
             let (mut previous, mut previous_global) = (f64::INFINITY, f64::INFINITY);
             // The stage at a node c = 0, if any (see `eval_all`).
             let origin = kernel.nodes().iter().position(|&c| c == 0.0);
@@ -1301,6 +1298,12 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                 bank.combine(0..s, y0, &[], &[], props, ws);
             }
             let (residual, global, converged) = loop {
+                // The last update in the global scale.
+                let last_global = if PER_COMPONENT {
+                    previous_global
+                } else {
+                    previous
+                };
                 if let Some(mats) = fused {
                     B::fused_sweep(mats, props, g, new_stages, s, d);
                 } else {
@@ -1312,34 +1315,62 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                         bank.combine(0..s, y0, moments, &coef[..s * m], new_stages, ws);
                     }
                 }
-                // Newton: Y ← Y + (I − Φ'(Y*))⁻¹ (Φ(Y) − Y), Y* = y₀ or the stages of the
-                // last refresh.
-                let rhs = lu.as_ref().map(|lu| {
+                if let Some(current) = lu.as_ref().filter(|_| NEWTON) {
+                    // Newton: Y ← Y + (I − Φ'(Y*))⁻¹ (Φ(Y) − Y), Y* = y₀ or the stages of the
+                    // last refresh.
                     let rhs = nalgebra::DVector::from_iterator(
                         s * d,
                         new_stages.iter().zip(stages.iter()).map(|(a, b)| a - b),
                     );
-                    newton_update(lu, &rhs, stages, new_stages);
-                    rhs
-                });
-                let (mut residual, mut global) = stage_update(new_stages, stages, atol);
-                if let (Some(rhs), Some(nw)) = (&rhs, newton.as_deref_mut()) {
+                    let update = newton_apply(current, &rhs, stages, new_stages);
                     // Not contracting by NEWTON_REFRESH_THETA (or not finite): redo the update
                     // with the Jacobians at the current stages. Not at the first iteration,
                     // whose Jacobian is that of y₀, where the stages start.
-                    if refresh && sweeps > 0 && !(global < NEWTON_REFRESH_THETA * previous_global) {
-                        nw.ys.copy_from_slice(stages);
-                        nw.gs.copy_from_slice(g);
-                        drop(lu.take()); // the old factorisation goes before the new one is built
-                        let (new_lu, evals) = refreshed_newton_lu(&*system, nw, s, d, scratch)?;
-                        g_evals += evals;
-                        jacobian_evals += s;
-                        newton_refreshes += 1;
-                        newton_update(&new_lu, rhs, stages, new_stages);
-                        (residual, global) = stage_update(new_stages, stages, atol);
-                        lu = Some(new_lu);
+                    if refresh && sweeps > 0 && !(update < NEWTON_REFRESH_THETA * last_global) {
+                        if let Some(nw) = newton.as_deref_mut() {
+                            // Heap copies (a refresh allocates the Newton matrix anyway), so
+                            // that fixed-size stage arrays are not handed to a function that
+                            // is not inlined.
+                            let ys =
+                                nalgebra::DVector::from_iterator(s * d, stages.iter().copied());
+                            let gs = nalgebra::DVector::from_iterator(s * d, g.iter().copied());
+                            drop(lu.take()); // the old factorisation goes before the new one is built
+                            let (fresh, evals) = refreshed_newton_lu(
+                                &*system,
+                                nw,
+                                ys.as_slice(),
+                                gs.as_slice(),
+                                s,
+                                d,
+                                scratch,
+                            )?;
+                            newton_apply(&fresh, &rhs, stages, new_stages);
+                            lu = Some(fresh);
+                            g_evals += evals;
+                            jacobian_evals += s;
+                            newton_refreshes += 1;
+                        }
                     }
                 }
+                // The scaled max-norm of the update. max |Yᵢ| is taken over the bit patterns:
+                // for non-negative floats they order as the values do, and |NaN| orders above
+                // ∞, so a NaN or infinite stage makes the residual NaN (`f64::max` would skip
+                // NaN); the update's max can skip it (comparisons are cheaper).
+                let (mut diff, mut mag) = (0.0_f64, 1.0_f64.to_bits());
+                for (a, b) in new_stages.iter().zip(stages.iter()) {
+                    let t = (a - b).abs();
+                    if t > diff {
+                        diff = t;
+                    }
+                    mag = mag.max(a.abs().to_bits());
+                }
+                let global = diff / f64::from_bits(mag);
+                // The stopping rule's measure (per component: a second pass).
+                let residual = if PER_COMPONENT {
+                    per_component_update(new_stages, stages, atol)
+                } else {
+                    global
+                };
                 let unchanged = origin.filter(|&j| {
                     let at = j * d..(j + 1) * d;
                     new_stages[at.clone()]
@@ -1352,18 +1383,25 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                 stages.copy_from_slice(new_stages);
                 sweeps += 1;
                 if !global.is_finite() {
-                    return Err(stage_fault(g, previous_global));
+                    return Err(stage_fault(g, last_global));
                 }
                 eval_all(stages, g, scratch, unchanged)?;
                 g_evals += s - usize::from(unchanged.is_some());
-                if sweeps_converged_scaled(residual, previous, global, settings.tolerance) {
+                let converged = if PER_COMPONENT {
+                    sweeps_converged_scaled(residual, previous, global, settings.tolerance)
+                } else {
+                    sweeps_converged(residual, previous, settings.tolerance)
+                };
+                if converged {
                     break (residual, global, true);
                 }
                 if sweeps >= settings.max_sweeps {
                     break (residual, global, false);
                 }
                 previous = residual;
-                previous_global = global;
+                if PER_COMPONENT {
+                    previous_global = global;
+                }
             };
             if !converged && settings.on_limit == SweepLimit::Error {
                 if let Some(what) = g_fault(g, global) {
