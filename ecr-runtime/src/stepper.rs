@@ -1326,7 +1326,9 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                     // Not contracting by NEWTON_REFRESH_THETA (or not finite): redo the update
                     // with the Jacobians at the current stages. Not at the first iteration,
                     // whose Jacobian is that of y₀, where the stages start.
-                    if refresh && sweeps > 0 && !(update < NEWTON_REFRESH_THETA * last_global) {
+                    // (False for a NaN update too.)
+                    let contracts = update < NEWTON_REFRESH_THETA * last_global;
+                    if refresh && sweeps > 0 && !contracts {
                         if let Some(nw) = newton.as_deref_mut() {
                             // Heap copies (a refresh allocates the Newton matrix anyway), so
                             // that fixed-size stage arrays are not handed to a function that
