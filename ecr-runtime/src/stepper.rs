@@ -97,9 +97,9 @@ pub fn sweeps_converged_scaled(residual: f64, previous: f64, global: f64, tolera
 
 /// Contraction estimates θ at or above this make [`StageSolver::Newton`] refresh its Jacobian
 /// at the current stages (and redo the iteration's update with it). Below it the simplified
-/// iteration is kept: at θ = 0.5 it gains 15 digits in 50 iterations, about the cost of one
-/// LU factorisation of the Newton matrix for moderate s·d; above it the frozen Jacobian is
-/// losing, and at θ ≥ 1 it diverges.
+/// iteration is kept: at θ = 0.5 it needs about 50 iterations for 15 digits, and one LU
+/// factorisation of the n × n Newton matrix (n = s·d, 2n³/3 operations) costs as many
+/// operations as n/3 of its solves (2n² each): 43 at s = 2, d = 64. At θ ≥ 1 it diverges.
 pub const NEWTON_REFRESH_THETA: f64 = 0.5;
 
 /// The [`Error::NonFinite`] of a diverging stage iteration.
