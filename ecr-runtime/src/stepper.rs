@@ -71,14 +71,36 @@ pub const STAGNATION_THETA: f64 = 0.9;
 /// so the estimate is r when 2r ≤ p (or θ ≥ 1) and r²/(p − r) otherwise.
 #[inline]
 pub fn sweeps_converged(residual: f64, previous: f64, tolerance: f64) -> bool {
+    sweeps_converged_scaled(residual, previous, residual, tolerance)
+}
+
+/// [`sweeps_converged`] for an update measured in a scale of its own (e.g. per component,
+/// [`StageScale::PerComponent`]), with `global` the same update in the scale of the whole
+/// state (‖ΔY‖∞ / max(1, ‖Y‖∞)).
+///
+/// The estimate and the contraction θ come from `residual`; round-off is judged on `global`:
+/// stagnation is `global` ≤ [`ROUNDOFF_RESIDUAL`] with θ ≥ [`STAGNATION_THETA`]. A component
+/// computed from much larger ones carries their rounding error, ε times *their* size, which is
+/// far above ε in its own scale (so is a component near zero): its scaled update never falls
+/// to [`ROUNDOFF_RESIDUAL`], but it stops contracting once the whole state is at round-off,
+/// and that ends the iteration. With `global = residual` this is [`sweeps_converged`].
+#[inline]
+pub fn sweeps_converged_scaled(residual: f64, previous: f64, global: f64, tolerance: f64) -> bool {
     let (r, p) = (residual, previous); // p = ∞ on the first sweep: θ = 0
     let estimate_ok = if r < p && 2.0 * r > p {
         r * r <= tolerance * (p - r)
     } else {
         r <= tolerance
     };
-    estimate_ok || (r <= ROUNDOFF_RESIDUAL && r >= STAGNATION_THETA * p)
+    estimate_ok || (global <= ROUNDOFF_RESIDUAL && r >= STAGNATION_THETA * p)
 }
+
+/// Contraction estimates θ at or above this make [`StageSolver::Newton`] refresh its Jacobian
+/// at the current stages (and redo the iteration's update with it). Below it the simplified
+/// iteration is kept: at θ = 0.5 it needs about 50 iterations for 15 digits, and one LU
+/// factorisation of the n × n Newton matrix (n = s·d, 2n³/3 operations) costs as many
+/// operations as n/3 of its solves (2n² each): 43 at s = 2, d = 64. At θ ≥ 1 it diverges.
+pub const NEWTON_REFRESH_THETA: f64 = 0.5;
 
 /// The [`Error::NonFinite`] of a diverging stage iteration.
 const DIVERGED: &str = "stage values (the stage iteration diverged: try a smaller h, or \
@@ -183,23 +205,64 @@ pub enum StageSolver {
     /// (the linear part, however stiff, is integrated exactly and does not count).
     #[default]
     FixedPoint,
-    /// Simplified Newton: `Y ← Y + (I − Φ'(y₀))⁻¹ (Φ(Y) − Y)`, with the Jacobian of g at y₀
-    /// from [`System::jacobian`] or, where that is not provided, forward differences (d more
-    /// evaluations of g per step). For stiff nonlinearities (e.g. Allen–Cahn with small ε,
-    /// tests/newton.rs). Cost per step: the s·d × s·d Newton matrix and its LU factorisation
-    /// (allocated per step), s² products of d × d matrices; once per step size, the kernel
-    /// matrices from `s·r·d` bank applications. Meant for moderate d: construction fails
-    /// with an error naming the size when the `2s²d² + 2d²` numbers cannot be allocated. The ECrP
-    /// stepper (and so TCrP/RKNCrP, which run on it); the baselines reject it.
+    /// Newton with a refreshed Jacobian where the simplified iteration stalls: each step
+    /// starts as simplified Newton, `Y ← Y + (I − Φ'(y₀))⁻¹ (Φ(Y) − Y)`, with the Jacobian J
+    /// of g at y₀ from [`System::jacobian`] or, where that is not provided, forward
+    /// differences (d more evaluations of g). When an iteration's update is not at least
+    /// [`NEWTON_REFRESH_THETA`] times the previous one (or is not finite), the update is
+    /// discarded and redone with the Jacobians at the current stages, block (i, k) of the
+    /// Newton matrix `δ_ik I − Q_ik J(Y_k)` (full Newton at that iterate; s Jacobians, and with
+    /// forward differences s·d more evaluations of g); that matrix is then kept while the
+    /// iteration contracts. A step on which the simplified iteration contracts costs what
+    /// [`SimplifiedNewton`](Self::SimplifiedNewton) costs, bit for bit the same stages.
+    /// [`StepReport::jacobian_evals`] and [`StepReport::newton_refreshes`] say what ran.
+    ///
+    /// For stiff nonlinearities (e.g. Allen–Cahn with small ε, or a reaction term whose
+    /// Jacobian changes sign across the step). Cost per step: the s·d × s·d Newton matrix and
+    /// its LU factorisation (allocated per step, and per refresh), s² products of d × d
+    /// matrices; once per step size, the kernel matrices from `s·r·d` bank applications.
+    /// Meant for moderate d: construction fails with an error naming the size when the
+    /// `2s²d² + 2d² + 3sd` numbers cannot be allocated. The ECrP stepper (and so
+    /// TCrP/RKNCrP, which run on it); the baselines reject it.
     Newton,
+    /// Simplified Newton only: the Jacobian frozen at y₀ for the whole step, never refreshed
+    /// (one Jacobian and one factorisation per step, whatever the contraction). It diverges
+    /// where g' changes a lot across the step; [`Newton`](Self::Newton) is the same iteration
+    /// with the refresh.
+    SimplifiedNewton,
+}
+
+/// How the stopping rule measures a stage update ΔY (see [`sweeps_converged`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum StageScale {
+    /// ‖ΔY‖∞ / max(1, ‖Y‖∞): relative to the largest stage component, absolute below 1 (the
+    /// default). Robust (every component's rounding error is at most ε times the largest
+    /// component, so the iteration always reaches this test or round-off stagnation) and
+    /// the cheapest; but components far smaller than the largest are converged only to
+    /// `tolerance · max(1, ‖Y‖∞)` in absolute terms (a component of size 1e−20 beside ones of
+    /// size 1 keeps a relative error of up to `tolerance`/1e−20).
+    #[default]
+    Global,
+    /// `max_i |ΔY_i| / max(|Y_i|, atol)`: each component relative to itself, absolute below
+    /// `atol` (> 0, finite). For states whose components differ in size by many orders of
+    /// magnitude. Components whose own rounding error is far above ε in their own scale (near
+    /// zero, or computed from much larger components) cannot reach this test; the iteration
+    /// then ends by round-off stagnation measured in the global scale
+    /// ([`sweeps_converged_scaled`]). One more comparison per component and sweep. The ECrP
+    /// stepper (and TCrP/RKNCrP, which run on it); the baselines reject it.
+    PerComponent {
+        /// Components below this size are measured absolutely.
+        atol: f64,
+    },
 }
 
 /// Settings of the stage solver.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SolverSettings {
     /// Stop when the estimated distance to the fixed point, from the scaled max-norm of the
-    /// stage update ‖ΔY‖∞ / max(1, ‖Y‖∞) and the observed contraction, is ≤ this, or when the
-    /// update stagnates at round-off level (see [`sweeps_converged`]).
+    /// stage update (‖ΔY‖∞ / max(1, ‖Y‖∞), or per component: [`scale`](Self::scale)) and the
+    /// observed contraction, is ≤ this, or when the update stagnates at round-off level (see
+    /// [`sweeps_converged`]).
     pub tolerance: f64,
     /// Maximum number of sweeps per step.
     pub max_sweeps: usize,
@@ -207,9 +270,12 @@ pub struct SolverSettings {
     pub on_limit: SweepLimit,
     /// The initial iterate of the stages.
     pub predictor: Predictor,
-    /// Fixed-point sweeps or simplified Newton (each "sweep" of the reports is then one Newton
+    /// Fixed-point sweeps or Newton (each "sweep" of the reports is then one Newton
     /// iteration; the stopping rule is the same).
     pub solver: StageSolver,
+    /// How the stopping rule measures the stage update: in the scale of the whole state (the
+    /// default) or per component.
+    pub scale: StageScale,
     /// Form y₁ with the propagator in double-double and carry its rounding error to the next
     /// step (compensated summation), where the kernel bank supports it
     /// ([`PhiBank::propagate_dd`]; see the module docs). On by default: it removes the
@@ -219,7 +285,7 @@ pub struct SolverSettings {
 
 impl Default for SolverSettings {
     /// Tolerance 1e−15, at most 100 sweeps, error at the limit, stages started at y₀,
-    /// fixed-point sweeps, compensated update.
+    /// fixed-point sweeps, the global scale, compensated update.
     fn default() -> Self {
         SolverSettings {
             tolerance: 1e-15,
@@ -227,13 +293,15 @@ impl Default for SolverSettings {
             on_limit: SweepLimit::Error,
             predictor: Predictor::Constant,
             solver: StageSolver::FixedPoint,
+            scale: StageScale::Global,
             compensated: true,
         }
     }
 }
 
 impl SolverSettings {
-    /// Checks tolerance ≥ 0 (not NaN) and max_sweeps ≥ 1.
+    /// Checks tolerance ≥ 0 (not NaN), max_sweeps ≥ 1, and a finite atol > 0 for
+    /// [`StageScale::PerComponent`].
     ///
     /// # Errors
     /// [`Error::InvalidParameter`] otherwise.
@@ -243,19 +311,32 @@ impl SolverSettings {
                 "solver settings need tolerance >= 0 and max_sweeps >= 1 (got {self:?})"
             )));
         }
+        if let StageScale::PerComponent { atol } = self.scale {
+            if !(atol.is_finite() && atol > 0.0) {
+                return Err(Error::InvalidParameter(format!(
+                    "StageScale::PerComponent needs a finite atol > 0 (got {atol:?})"
+                )));
+            }
+        }
         Ok(())
     }
 
-    /// `Err(InvalidParameter)` unless the solver is [`StageSolver::FixedPoint`] (for steppers
-    /// without a Newton iteration).
+    /// `Err(InvalidParameter)` unless the solver is [`StageSolver::FixedPoint`] and the scale
+    /// [`StageScale::Global`] (for steppers without a Newton iteration or a per-component
+    /// stopping rule).
     pub(crate) fn require_fixed_point(&self, stepper: &str) -> Result<()> {
-        if self.solver == StageSolver::FixedPoint {
-            Ok(())
-        } else {
+        if self.solver != StageSolver::FixedPoint {
             Err(Error::InvalidParameter(format!(
                 "{stepper} solves its stages by fixed-point sweeps only (StageSolver::Newton is \
                  implemented for the ECrP stepper and TCrP/RKNCrP)"
             )))
+        } else if self.scale != StageScale::Global {
+            Err(Error::InvalidParameter(format!(
+                "{stepper} measures its stage updates in the global scale only \
+                 (StageScale::PerComponent is implemented for the ECrP stepper and TCrP/RKNCrP)"
+            )))
+        } else {
+            Ok(())
         }
     }
 
@@ -268,6 +349,7 @@ impl SolverSettings {
             on_limit: SweepLimit::Accept,
             predictor: Predictor::Constant,
             solver: StageSolver::FixedPoint,
+            scale: StageScale::Global,
             compensated: true,
         }
     }
@@ -284,6 +366,13 @@ pub struct StepReport {
     pub g_evals: usize,
     /// Whether the tolerance was reached.
     pub converged: bool,
+    /// Jacobians of g formed (each d × d, analytic or by forward differences, whose
+    /// evaluations of g are in `g_evals`): 0 for fixed-point sweeps, 1 (at y₀) for
+    /// simplified Newton, plus s per refresh ([`StageSolver::Newton`]).
+    pub jacobian_evals: usize,
+    /// How often [`StageSolver::Newton`] refreshed its Jacobian at the stages (0: the step
+    /// was simplified Newton throughout).
+    pub newton_refreshes: usize,
 }
 
 /// The coefficient-dependent part of an ECrP method.
@@ -565,27 +654,35 @@ pub struct Stepper<K: Kernel, S: System, B: Buffers> {
     buf: B,
     /// The buffers hold a completed step (y₀, moments, and its end in `last`) for this h.
     have_previous: bool,
-    /// Simplified-Newton data ([`StageSolver::Newton`]), built at the first step for this h.
+    /// Newton data ([`StageSolver::Newton`], [`StageSolver::SimplifiedNewton`]), built at the
+    /// first step for this h.
     newton: Option<Box<NewtonState>>,
 }
 
-/// The most numbers the simplified Newton iteration holds at once: the stage matrices and
-/// the Newton matrix (s²d² each), the Jacobian and one d × d block product; `None` on overflow.
+/// The most numbers the Newton iteration holds at once: the stage matrices and the Newton
+/// matrix (s²d² each), the Jacobian and one d × d block product, and at a refresh the
+/// right-hand side and copies of the stages and of g there (s·d each); `None` on overflow.
 fn newton_entries(s: usize, d: usize) -> Option<usize> {
     let dd = d.checked_mul(d)?;
     s.checked_mul(s)?
         .checked_mul(dd)?
         .checked_add(dd)?
-        .checked_mul(2)
+        .checked_mul(2)?
+        .checked_add(s.checked_mul(d)?.checked_mul(3)?)
 }
 
-/// What the simplified Newton iteration keeps: the stage matrices for the step size and
-/// scratch for the Jacobian.
+/// What the Newton iteration keeps: the stage matrices for the step size and scratch for the
+/// Jacobians.
 struct NewtonState {
     /// The stage matrices `∂Φ_i/∂g_k` ([`stage_matrices`]).
     q: Vec<f64>,
+    jac: JacobianScratch,
+}
+
+/// A Jacobian of g and the d-vectors that forward differences need.
+struct JacobianScratch {
     jac: nalgebra::DMatrix<f64>,
-    /// d-vectors: a point, g there, g at y₀.
+    /// d-vectors: a point, g there, g at the base point.
     yp: Vec<f64>,
     gp: Vec<f64>,
     g0: Vec<f64>,
@@ -596,12 +693,167 @@ impl NewtonState {
     fn new(q: Vec<f64>, d: usize) -> Self {
         NewtonState {
             q,
-            jac: nalgebra::DMatrix::zeros(d, d),
-            yp: vec![0.0; d],
-            gp: vec![0.0; d],
-            g0: vec![0.0; d],
+            jac: JacobianScratch {
+                jac: nalgebra::DMatrix::zeros(d, d),
+                yp: vec![0.0; d],
+                gp: vec![0.0; d],
+                g0: vec![0.0; d],
+            },
         }
     }
+}
+
+/// The LU factorisation of the Newton matrix.
+type NewtonLu = nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>;
+
+/// The Jacobian of g at `y` into `js.jac`: the system's, or forward differences from g(y)
+/// (`gy`, or evaluated here if `None`). Returns the evaluations of g it took.
+///
+/// # Errors
+/// [`Error::DimensionMismatch`] if the system's Jacobian is not d × d, [`Error::NonFinite`]
+/// (naming `at`) if it has a non-finite entry.
+fn jacobian_into<S: System>(
+    system: &S,
+    y: &[f64],
+    gy: Option<&[f64]>,
+    js: &mut JacobianScratch,
+    scratch: &mut [f64],
+    at: &'static str,
+) -> Result<usize> {
+    let d = y.len();
+    let mut evals = 0;
+    if !system.jacobian(y, &mut js.jac, scratch) {
+        let g0 = match gy {
+            Some(gy) => gy,
+            None => {
+                system.nonlinear(y, &mut js.g0, scratch);
+                evals += 1;
+                &js.g0
+            }
+        };
+        evals += d;
+        for l in 0..d {
+            js.yp.copy_from_slice(y);
+            let step = f64::EPSILON.sqrt() * y[l].abs().max(1.0);
+            js.yp[l] += step;
+            let step = js.yp[l] - y[l];
+            system.nonlinear(&js.yp, &mut js.gp, scratch);
+            for (t, (a, b)) in js.gp.iter().zip(g0).enumerate() {
+                js.jac[(t, l)] = (a - b) / step;
+            }
+        }
+    }
+    if js.jac.shape() != (d, d) {
+        let found = js.jac.nrows() * js.jac.ncols();
+        js.jac = nalgebra::DMatrix::zeros(d, d);
+        return Err(Error::DimensionMismatch {
+            what: "Jacobian of g (d × d entries)",
+            expected: d * d,
+            found,
+        });
+    }
+    if js.jac.iter().any(|v| !v.is_finite()) {
+        return Err(Error::NonFinite(at));
+    }
+    Ok(evals)
+}
+
+/// Subtracts `Q_ik J` from block (i, k) of the Newton matrix `nm`, for every i < s.
+fn subtract_column_block(
+    nm: &mut nalgebra::DMatrix<f64>,
+    q: &[f64],
+    jac: &nalgebra::DMatrix<f64>,
+    k: usize,
+    s: usize,
+    d: usize,
+) {
+    for i in 0..s {
+        let q = &q[(i * s + k) * d * d..(i * s + k + 1) * d * d];
+        let block = nalgebra::DMatrixView::from_slice(q, d, d) * jac;
+        let mut view = nm.view_mut((i * d, k * d), (d, d));
+        view -= block;
+    }
+}
+
+/// The LU factorisation of the Newton matrix `nm`.
+///
+/// # Errors
+/// [`Error::Numerical`] if it is singular.
+fn factor_newton_matrix(nm: nalgebra::DMatrix<f64>) -> Result<NewtonLu> {
+    let lu = nm.lu();
+    if !lu.is_invertible() {
+        return Err(Error::Numerical(
+            "the Newton matrix of the stage equations is singular".into(),
+        ));
+    }
+    Ok(lu)
+}
+
+/// The Newton matrix at the stages `ys` (g there: `gs`), block (i, k) = `δ_ik I − Q_ik
+/// J(Y_k)`, factorised; and the evaluations of g its Jacobians took. Off the hot path: only
+/// when the simplified iteration stops contracting.
+#[cold]
+#[inline(never)]
+fn refreshed_newton_lu<S: System>(
+    system: &S,
+    nw: &mut NewtonState,
+    ys: &[f64],
+    gs: &[f64],
+    s: usize,
+    d: usize,
+    scratch: &mut [f64],
+) -> Result<(NewtonLu, usize)> {
+    let mut nm = nalgebra::DMatrix::<f64>::identity(s * d, s * d);
+    let mut evals = 0;
+    for k in 0..s {
+        let at = k * d..(k + 1) * d;
+        evals += jacobian_into(
+            system,
+            &ys[at.clone()],
+            Some(&gs[at]),
+            &mut nw.jac,
+            scratch,
+            "Jacobian of g at a stage",
+        )?;
+        subtract_column_block(&mut nm, &nw.q, &nw.jac.jac, k, s, d);
+    }
+    Ok((factor_newton_matrix(nm)?, evals))
+}
+
+/// `new = old + (I − Φ')⁻¹ rhs` with the factorised Newton matrix (`rhs = Φ(old) − old`);
+/// returns the global measure of that update, ‖new − old‖∞ / max(1, ‖new‖∞) (NaN or ∞ if
+/// it is not finite).
+#[inline]
+fn newton_apply(lu: &NewtonLu, rhs: &nalgebra::DVector<f64>, old: &[f64], new: &mut [f64]) -> f64 {
+    let delta = lu.solve(rhs);
+    let delta = delta.as_ref().unwrap_or(rhs);
+    let (mut diff, mut mag) = (0.0_f64, 1.0_f64);
+    for ((n, y), dl) in new.iter_mut().zip(old).zip(delta.iter()) {
+        *n = y + dl;
+        diff = diff.max(dl.abs());
+        mag = mag.max(n.abs());
+    }
+    if new.iter().all(|v| v.is_finite()) {
+        diff / mag
+    } else {
+        f64::NAN
+    }
+}
+
+/// `max_i |new_i − old_i| / max(|new_i|, atol)` ([`StageScale::PerComponent`]; `atol` > 0),
+/// division-free per component: `t / scale > rel ⇔ t > rel · scale`. Meaningless if a new
+/// stage is not finite (the global measure, computed beside it, catches that).
+#[inline]
+fn per_component_update(new: &[f64], old: &[f64], atol: f64) -> f64 {
+    let mut rel = 0.0_f64;
+    for (a, b) in new.iter().zip(old) {
+        let t = (a - b).abs();
+        let scale = a.abs().max(atol);
+        if t > rel * scale {
+            rel = t / scale;
+        }
+    }
+    rel
 }
 
 /// The stage matrices of ECrP: `M_ik = Σ_j coef_ij ℓ_jk Ψ_j(cᵢ, hA)` (`coef_ij = h cᵢ (2j+1)`,
@@ -756,10 +1008,10 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
     pub fn from_kernel(kernel: K, system: S, h: f64, settings: SolverSettings) -> Result<Self> {
         check_settings(&settings)?;
         crate::system::check_system(&system)?;
-        if settings.solver == StageSolver::Newton {
+        if settings.solver != StageSolver::FixedPoint {
             let (s, d) = (kernel.s(), system.dim());
             ensure_allocatable(
-                &format!("simplified Newton for d = {d}, s = {s} (2s²d² + 2d² numbers)"),
+                &format!("Newton for d = {d}, s = {s} (2s²d² + 2d² + 3sd numbers)"),
                 newton_entries(s, d),
             )?;
         }
@@ -884,6 +1136,23 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
     /// the step, or h is unstable for it), [`Error::NoConvergence`] if the sweeps do not
     /// converge and [`SweepLimit::Error`] is set. On error, y is unchanged.
     pub fn step(&mut self, y: &mut [f64]) -> Result<StepReport> {
+        // One compiled step per stage solver kind and scale, so that the fixed-point sweeps in
+        // the global scale (the small steppers' hot path) carry no code of the others.
+        let newton = self.settings.solver != StageSolver::FixedPoint;
+        match (newton, self.settings.scale) {
+            (false, StageScale::Global) => self.step_with::<false, false>(y),
+            (false, StageScale::PerComponent { .. }) => self.step_with::<false, true>(y),
+            (true, StageScale::Global) => self.step_with::<true, false>(y),
+            (true, StageScale::PerComponent { .. }) => self.step_with::<true, true>(y),
+        }
+    }
+
+    /// [`step`](Self::step) with Newton (`NEWTON`, else fixed-point sweeps) and the
+    /// per-component scale (`PER_COMPONENT`, else the global one), as the settings say.
+    fn step_with<const NEWTON: bool, const PER_COMPONENT: bool>(
+        &mut self,
+        y: &mut [f64],
+    ) -> Result<StepReport> {
         let d = self.buf.dim();
         let (s, m) = (self.kernel.s(), self.kernel.r());
         if y.len() != d {
@@ -930,7 +1199,8 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             }
             let extrapolate = continuing && settings.predictor == Predictor::Extrapolate;
             let mut jacobian_evals = 0;
-            let lu = if settings.solver == StageSolver::Newton {
+            let mut jacobian_g_evals = 0;
+            let mut lu = if NEWTON {
                 let nw = newton.get_or_insert_with(|| {
                     // The fused sweeps' stage matrices where there are some (the same numbers).
                     let q = match fused {
@@ -940,51 +1210,29 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                     Box::new(NewtonState::new(q, d))
                 });
                 // The Jacobian of g at y₀: the system's, or forward differences.
-                if !system.jacobian(y, &mut nw.jac, scratch) {
-                    system.nonlinear(y, &mut nw.g0, scratch);
-                    jacobian_evals = 1 + d;
-                    for l in 0..d {
-                        nw.yp.copy_from_slice(y);
-                        let step = f64::EPSILON.sqrt() * y[l].abs().max(1.0);
-                        nw.yp[l] += step;
-                        let step = nw.yp[l] - y[l];
-                        system.nonlinear(&nw.yp, &mut nw.gp, scratch);
-                        for (t, (a, b)) in nw.gp.iter().zip(&nw.g0).enumerate() {
-                            nw.jac[(t, l)] = (a - b) / step;
-                        }
-                    }
-                }
-                if nw.jac.shape() != (d, d) {
-                    let found = nw.jac.nrows() * nw.jac.ncols();
-                    nw.jac = nalgebra::DMatrix::zeros(d, d);
-                    return Err(Error::DimensionMismatch {
-                        what: "Jacobian of g (d × d entries)",
-                        expected: d * d,
-                        found,
-                    });
-                }
-                if nw.jac.iter().any(|v| !v.is_finite()) {
-                    return Err(Error::NonFinite("Jacobian of g at y₀"));
-                }
+                jacobian_g_evals = jacobian_into(
+                    &*system,
+                    y,
+                    None,
+                    &mut nw.jac,
+                    scratch,
+                    "Jacobian of g at y₀",
+                )?;
+                jacobian_evals = 1;
                 // I − ∂Φ/∂Y at y₀: block (i, k) = δ_ik I − Q_ik J.
                 let mut nm = nalgebra::DMatrix::<f64>::identity(s * d, s * d);
-                for i in 0..s {
-                    for k in 0..s {
-                        let q = &nw.q[(i * s + k) * d * d..(i * s + k + 1) * d * d];
-                        let block = nalgebra::DMatrixView::from_slice(q, d, d) * &nw.jac;
-                        let mut view = nm.view_mut((i * d, k * d), (d, d));
-                        view -= block;
-                    }
+                for k in 0..s {
+                    subtract_column_block(&mut nm, &nw.q, &nw.jac.jac, k, s, d);
                 }
-                let lu = nm.lu();
-                if !lu.is_invertible() {
-                    return Err(Error::Numerical(
-                        "the Newton matrix of the stage equations is singular".into(),
-                    ));
-                }
-                Some(lu)
+                Some(factor_newton_matrix(nm)?)
             } else {
                 None
+            };
+            let refresh = settings.solver == StageSolver::Newton;
+            let mut newton_refreshes = 0;
+            let atol = match settings.scale {
+                StageScale::PerComponent { atol } => atol,
+                StageScale::Global => 1.0,
             };
             // g at every stage. Not checked here: a non-finite g makes the next sweep's stages
             // non-finite, which the residual catches, or, after the last sweep, y₁ (both then
@@ -1038,9 +1286,11 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                 }
                 g_evals = 1;
             }
-            g_evals += jacobian_evals;
+            g_evals += jacobian_g_evals;
             let mut sweeps = 0;
-            let mut previous = f64::INFINITY;
+            // The last update in the stopping rule's scale and in the global one.
+            // (In the global scale the two are the same number: only `previous` is kept.)
+            let (mut previous, mut previous_global) = (f64::INFINITY, f64::INFINITY);
             // The stage at a node c = 0, if any (see `eval_all`).
             let origin = kernel.nodes().iter().position(|&c| c == 0.0);
             let fused = fused.as_deref();
@@ -1048,7 +1298,13 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                 // e^{cᵢhA} y₀, once per step.
                 bank.combine(0..s, y0, &[], &[], props, ws);
             }
-            let (residual, converged) = loop {
+            let (residual, global, converged) = loop {
+                // The last update in the global scale.
+                let last_global = if PER_COMPONENT {
+                    previous_global
+                } else {
+                    previous
+                };
                 if let Some(mats) = fused {
                     B::fused_sweep(mats, props, g, new_stages, s, d);
                 } else {
@@ -1060,15 +1316,43 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                         bank.combine(0..s, y0, moments, &coef[..s * m], new_stages, ws);
                     }
                 }
-                if let Some(lu) = &lu {
-                    // Y ← Y + (I − Φ'(y₀))⁻¹ (Φ(Y) − Y).
+                if let Some(current) = lu.as_ref().filter(|_| NEWTON) {
+                    // Newton: Y ← Y + (I − Φ'(Y*))⁻¹ (Φ(Y) − Y), Y* = y₀ or the stages of the
+                    // last refresh.
                     let rhs = nalgebra::DVector::from_iterator(
                         s * d,
                         new_stages.iter().zip(stages.iter()).map(|(a, b)| a - b),
                     );
-                    let delta = lu.solve(&rhs).unwrap_or(rhs);
-                    for ((n, y), dl) in new_stages.iter_mut().zip(stages.iter()).zip(delta.iter()) {
-                        *n = y + dl;
+                    let update = newton_apply(current, &rhs, stages, new_stages);
+                    // Not contracting by NEWTON_REFRESH_THETA (or not finite): redo the update
+                    // with the Jacobians at the current stages. Not at the first iteration,
+                    // whose Jacobian is that of y₀, where the stages start.
+                    // (False for a NaN update too.)
+                    let contracts = update < NEWTON_REFRESH_THETA * last_global;
+                    if refresh && sweeps > 0 && !contracts {
+                        if let Some(nw) = newton.as_deref_mut() {
+                            // Heap copies (a refresh allocates the Newton matrix anyway), so
+                            // that fixed-size stage arrays are not handed to a function that
+                            // is not inlined.
+                            let ys =
+                                nalgebra::DVector::from_iterator(s * d, stages.iter().copied());
+                            let gs = nalgebra::DVector::from_iterator(s * d, g.iter().copied());
+                            drop(lu.take()); // the old factorisation goes before the new one is built
+                            let (fresh, evals) = refreshed_newton_lu(
+                                &*system,
+                                nw,
+                                ys.as_slice(),
+                                gs.as_slice(),
+                                s,
+                                d,
+                                scratch,
+                            )?;
+                            newton_apply(&fresh, &rhs, stages, new_stages);
+                            lu = Some(fresh);
+                            g_evals += evals;
+                            jacobian_evals += s;
+                            newton_refreshes += 1;
+                        }
                     }
                 }
                 // The scaled max-norm of the update. max |Yᵢ| is taken over the bit patterns:
@@ -1083,7 +1367,13 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                     }
                     mag = mag.max(a.abs().to_bits());
                 }
-                let residual = diff / f64::from_bits(mag);
+                let global = diff / f64::from_bits(mag);
+                // The stopping rule's measure (per component: a second pass).
+                let residual = if PER_COMPONENT {
+                    per_component_update(new_stages, stages, atol)
+                } else {
+                    global
+                };
                 let unchanged = origin.filter(|&j| {
                     let at = j * d..(j + 1) * d;
                     new_stages[at.clone()]
@@ -1095,21 +1385,29 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                 // registers.
                 stages.copy_from_slice(new_stages);
                 sweeps += 1;
-                if !residual.is_finite() {
-                    return Err(stage_fault(g, previous));
+                if !global.is_finite() {
+                    return Err(stage_fault(g, last_global));
                 }
                 eval_all(stages, g, scratch, unchanged)?;
                 g_evals += s - usize::from(unchanged.is_some());
-                if sweeps_converged(residual, previous, settings.tolerance) {
-                    break (residual, true);
+                let converged = if PER_COMPONENT {
+                    sweeps_converged_scaled(residual, previous, global, settings.tolerance)
+                } else {
+                    sweeps_converged(residual, previous, settings.tolerance)
+                };
+                if converged {
+                    break (residual, global, true);
                 }
                 if sweeps >= settings.max_sweeps {
-                    break (residual, false);
+                    break (residual, global, false);
                 }
                 previous = residual;
+                if PER_COMPONENT {
+                    previous_global = global;
+                }
             };
             if !converged && settings.on_limit == SweepLimit::Error {
-                if let Some(what) = g_fault(g, residual) {
+                if let Some(what) = g_fault(g, global) {
                     return Err(Error::NonFinite(what));
                 }
                 return Err(Error::NoConvergence {
@@ -1148,7 +1446,7 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                 // g is not checked per sweep: a non-finite g makes the next stages non-finite
                 // (caught by the residual) or, at the last sweep, y₁.
                 return Err(
-                    g_fault(g, residual).map_or(Error::Overflow(Y1_OVERFLOWED), Error::NonFinite)
+                    g_fault(g, global).map_or(Error::Overflow(Y1_OVERFLOWED), Error::NonFinite)
                 );
             }
             last.copy_from_slice(y);
@@ -1158,6 +1456,8 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                 residual,
                 g_evals,
                 converged,
+                jacobian_evals,
+                newton_refreshes,
             })
         })
     }
@@ -1203,7 +1503,7 @@ fn kernel_coefficients(h: f64, taus: &[f64], r: usize) -> Vec<f64> {
 
 #[cfg(test)]
 mod tests {
-    use super::{all_finite, sweeps_converged};
+    use super::{all_finite, sweeps_converged, sweeps_converged_scaled};
 
     #[test]
     fn finiteness_of_every_entry() {
@@ -1248,5 +1548,33 @@ mod tests {
         // NaN is never convergence (the stepper reports divergence).
         assert!(!sweeps_converged(f64::NAN, 1e-3, TOL));
         assert!(!sweeps_converged(f64::NAN, inf, TOL));
+    }
+
+    #[test]
+    fn scaled_stopping_rule() {
+        let inf = f64::INFINITY;
+        // With the global measure equal to the scaled one it is the plain rule.
+        for (r, p) in [
+            (1e-16, inf),
+            (1e-14, 2e-14),
+            (8e-16, 5e-16),
+            (6e-16, 1e-15),
+            (0.3, 0.2),
+        ] {
+            assert_eq!(
+                sweeps_converged_scaled(r, p, r, TOL),
+                sweeps_converged(r, p, TOL),
+                "{r:e} {p:e}"
+            );
+        }
+        // A component whose own scale sees only noise (0.3, not contracting): stagnation once
+        // the whole state is at round-off, not before.
+        assert!(sweeps_converged_scaled(0.3, 0.2, 1e-16, TOL));
+        assert!(!sweeps_converged_scaled(0.3, 0.2, 1e-12, TOL));
+        // Still contracting in its own scale: go on, even at global round-off.
+        assert!(!sweeps_converged_scaled(1e-9, 1e-6, 1e-17, TOL));
+        // Converged in its own scale.
+        assert!(sweeps_converged_scaled(1e-17, 1e-15, 1e-30, TOL));
+        assert!(!sweeps_converged_scaled(f64::NAN, 1e-3, f64::NAN, TOL));
     }
 }

@@ -8,7 +8,7 @@ use ecr_runtime::ecr_method;
 use ecr_runtime::integrate::{IntegrateOptions, integrate};
 use ecr_runtime::operator::{Circulant, Dense, DenseStatic, Diagonal, Scalar, Symmetric};
 use ecr_runtime::problems::Duffing;
-use ecr_runtime::stepper::{EcStepper, SolverSettings};
+use ecr_runtime::stepper::{EcStepper, SolverSettings, StageScale};
 use ecr_runtime::system::{GradientFlow, Hamiltonian, Semilinear, System};
 use nalgebra::{DMatrix, SMatrix};
 use std::cell::Cell;
@@ -325,6 +325,24 @@ fn orders_and_node_counts_outside_the_supported_range() {
         },
         SolverSettings {
             tolerance: -1e-15,
+            ..s
+        },
+        SolverSettings {
+            scale: StageScale::PerComponent { atol: 0.0 },
+            ..s
+        },
+        SolverSettings {
+            scale: StageScale::PerComponent { atol: -1e-30 },
+            ..s
+        },
+        SolverSettings {
+            scale: StageScale::PerComponent { atol: f64::NAN },
+            ..s
+        },
+        SolverSettings {
+            scale: StageScale::PerComponent {
+                atol: f64::INFINITY,
+            },
             ..s
         },
     ] {

@@ -9,9 +9,16 @@
 //! exponential, the nonlinearity has `g'(u) = (1 − 3u²)/ε²` up to 2e4 in modulus, so
 //! fixed-point sweeps (contraction ≈ h‖g'‖ ≈ 6) diverge while Newton converges, and U must not
 //! increase. (At h = 1e−4 fixed point still converges, in ≈ 50 sweeps.)
+//!
+//! And a stiff reaction–diffusion problem where the Jacobian must follow the stages:
+//! `y' = A y + 50 (y − y³)`, A the periodic second-difference Laplacian scaled so that
+//! ‖hA‖∞ = 1e4 at h = 0.1. Within one step the diffusion flattens the profile and the reaction
+//! drives it towards 1, so g' = 50 (1 − 3y²) changes sign between y₀ and the stages:
+//! simplified Newton (Jacobian frozen at y₀) diverges at step 1, Newton with the Jacobian
+//! refreshed at the stages converges.
 
 use ecr_runtime::operator::Circulant;
-use ecr_runtime::stepper::{EcStepper, SolverSettings, StageSolver};
+use ecr_runtime::stepper::{EcStepper, SolverSettings, StageSolver, StepReport};
 use ecr_runtime::system::System;
 use ecr_runtime::{Error, Result};
 use nalgebra::DMatrix;
@@ -123,19 +130,28 @@ fn fixed_point_fails_and_newton_converges_on_allen_cahn() {
     assert_eq!(u, u0, "a failed step leaves the state unchanged");
     println!("| fixed point | — | 0 | fails at step 1: {err} | | |");
 
-    for analytic in [true, false] {
+    for (analytic, solver) in [
+        (true, StageSolver::Newton),
+        (false, StageSolver::Newton),
+        (true, StageSolver::SimplifiedNewton),
+    ] {
         let p = AllenCahn::new(analytic).unwrap();
-        let mut st = EcStepper::with_nodes(&p, 2, 2, h, newton()).unwrap();
+        let settings = SolverSettings {
+            solver,
+            ..SolverSettings::default()
+        };
+        let mut st = EcStepper::with_nodes(&p, 2, 2, h, settings).unwrap();
         let mut u = p.initial_value();
         let mut prev = p.lyapunov(&u);
         let start = prev;
-        let (mut total, mut worst, mut g_evals) = (0, 0, 0);
+        let (mut total, mut worst, mut g_evals, mut refreshes) = (0, 0, 0, 0);
         for n in 0..steps {
             let rep = st.step(&mut u).unwrap();
             assert!(rep.converged);
             total += rep.sweeps;
             worst = worst.max(rep.sweeps);
             g_evals += rep.g_evals;
+            refreshes += rep.newton_refreshes;
             let e = p.lyapunov(&u);
             // Non-increasing up to round-off of U (≈ 1e-13 relative here).
             assert!(
@@ -149,7 +165,7 @@ fn fixed_point_fails_and_newton_converges_on_allen_cahn() {
         // interfaces within a step of 3ε²); the default limit is 100.
         assert!(worst <= 40, "Newton needed {worst} iterations");
         println!(
-            "| simplified Newton | {} | {steps} | {:.1}, {worst} | {g_evals} | {start:.6} → {prev:.6} |",
+            "| {solver:?} ({refreshes} refreshes) | {} | {steps} | {:.1}, {worst} | {g_evals} | {start:.6} → {prev:.6} |",
             if analytic {
                 "analytic"
             } else {
@@ -261,4 +277,203 @@ fn newton_storage_that_cannot_exist_is_an_error_naming_its_size() {
     }
     let system = Semilinear::new(Zero::new(4), |_: &[f64], out: &mut [f64]| out.fill(0.0));
     assert!(EcStepper::with_nodes(system, 2, 2, 0.1, newton).is_ok());
+}
+
+/// `y' = κ D₂ y + 50 (y − y³)` on n periodic points of [0, 1), κ chosen so that
+/// ‖A‖∞ = 4κ/Δx² = 1e5 (‖hA‖∞ = 1e4 at h = 0.1); a gradient flow of
+/// `U(y) = Σ [κ/2 ((y_{i+1} − y_i)/Δx)² + 12.5 (y_i² − 1)²] Δx`.
+struct ReactionDiffusion {
+    op: Circulant,
+    n: usize,
+    dx: f64,
+    kappa: f64,
+    analytic_jacobian: bool,
+}
+
+const RD_NORM_A: f64 = 1e5;
+
+impl ReactionDiffusion {
+    fn new(n: usize, analytic_jacobian: bool) -> Result<Self> {
+        let dx = 1.0 / n as f64;
+        let kappa = RD_NORM_A * dx * dx / 4.0;
+        let mut c = vec![0.0; n];
+        c[0] = -2.0 * kappa / (dx * dx);
+        c[1] = kappa / (dx * dx);
+        c[n - 1] = kappa / (dx * dx);
+        Ok(ReactionDiffusion {
+            op: Circulant::new(c)?,
+            n,
+            dx,
+            kappa,
+            analytic_jacobian,
+        })
+    }
+
+    /// ‖A‖∞: the largest absolute row sum of the second-difference stencil.
+    fn norm_a(&self) -> f64 {
+        4.0 * self.kappa / (self.dx * self.dx)
+    }
+
+    /// a + b cos 2πx.
+    fn initial_value(&self, a: f64, b: f64) -> Vec<f64> {
+        (0..self.n)
+            .map(|i| a + b * (2.0 * std::f64::consts::PI * i as f64 * self.dx).cos())
+            .collect()
+    }
+
+    fn lyapunov(&self, u: &[f64]) -> f64 {
+        let mut e = 0.0;
+        let n = self.n;
+        for i in 0..n {
+            let ux = (u[(i + 1) % n] - u[i]) / self.dx;
+            e += 0.5 * self.kappa * ux * ux + 12.5 * (u[i] * u[i] - 1.0).powi(2);
+        }
+        e * self.dx
+    }
+}
+
+impl System for ReactionDiffusion {
+    type Op = Circulant;
+    fn linear(&self) -> &Circulant {
+        &self.op
+    }
+    fn nonlinear(&self, y: &[f64], out: &mut [f64], _scratch: &mut [f64]) {
+        for (o, u) in out.iter_mut().zip(y) {
+            *o = 50.0 * (u - u * u * u);
+        }
+    }
+    fn jacobian(&self, y: &[f64], jac: &mut DMatrix<f64>, _scratch: &mut [f64]) -> bool {
+        if !self.analytic_jacobian {
+            return false;
+        }
+        jac.fill(0.0);
+        for (i, u) in y.iter().enumerate() {
+            jac[(i, i)] = 50.0 * (1.0 - 3.0 * u * u);
+        }
+        true
+    }
+}
+
+fn solver(solver: StageSolver) -> SolverSettings {
+    SolverSettings {
+        solver,
+        ..SolverSettings::default()
+    }
+}
+
+#[test]
+fn newton_refreshes_its_jacobian_where_simplified_newton_diverges() {
+    let h = 0.1;
+    let steps = 10;
+    let n = 64;
+    let p = ReactionDiffusion::new(n, true).unwrap();
+    let stiffness = h * p.norm_a();
+    assert!((stiffness - 1e4).abs() <= 1e-9, "‖hA‖ = {stiffness}");
+    // 0.3 + 0.7 cos 2πx: smooth, values in [−0.4, 1].
+    let u0 = p.initial_value(0.3, 0.7);
+    println!(
+        "‖hA‖∞ = {stiffness:e}, h = {h}, N = {n}, U(y₀) = {:.6}",
+        p.lyapunov(&u0)
+    );
+
+    // Fixed-point sweeps and simplified Newton both fail at step 1, saying the iteration
+    // diverged; the state is left as it was.
+    for s in [StageSolver::FixedPoint, StageSolver::SimplifiedNewton] {
+        let mut st = EcStepper::with_nodes(&p, 2, 2, h, solver(s)).unwrap();
+        let mut u = u0.clone();
+        let err = st.step(&mut u).unwrap_err();
+        println!("{s:?}: step 1 fails: {err}");
+        assert!(
+            matches!(err, Error::NonFinite(w) if w.contains("diverg")),
+            "{s:?}: {err}"
+        );
+        assert_eq!(u, u0, "a failed step leaves the state unchanged");
+    }
+
+    // Newton: the step-1 iteration stops contracting with J(y₀), refreshes the Jacobian at the
+    // stages, and converges; U does not increase.
+    for analytic in [true, false] {
+        let p = ReactionDiffusion::new(n, analytic).unwrap();
+        let mut st = EcStepper::with_nodes(&p, 2, 2, h, solver(StageSolver::Newton)).unwrap();
+        let mut u = u0.clone();
+        let mut prev = p.lyapunov(&u);
+        let start = prev;
+        let mut reports: Vec<StepReport> = Vec::new();
+        for n in 0..steps {
+            let rep = st.step(&mut u).unwrap();
+            assert!(rep.converged, "step {n}: {rep:?}");
+            assert_eq!(rep.jacobian_evals, 1 + 2 * rep.newton_refreshes, "{rep:?}");
+            let e = p.lyapunov(&u);
+            assert!(
+                e <= prev * (1.0 + 1e-13),
+                "step {n}: U rose from {prev} to {e}"
+            );
+            prev = e;
+            reports.push(rep);
+        }
+        assert!(
+            reports[0].newton_refreshes >= 1,
+            "step 1 should need a refresh: {:?}",
+            reports[0]
+        );
+        assert!(prev < start);
+        let line: Vec<String> = reports
+            .iter()
+            .map(|r| format!("{}/{}/{}", r.sweeps, r.jacobian_evals, r.newton_refreshes))
+            .collect();
+        println!(
+            "Newton ({} Jacobian): per step iterations/Jacobians/refreshes {}; g-evaluations {}; \
+             U {start:.6} → {prev:.3e}; mean y {:.6}",
+            if analytic {
+                "analytic"
+            } else {
+                "finite-difference"
+            },
+            line.join(" "),
+            reports.iter().map(|r| r.g_evals).sum::<usize>(),
+            u.iter().sum::<f64>() / n as f64
+        );
+    }
+}
+
+/// The limit of undamped Newton: with 128 points (‖hA‖ still 1e4) and y₀ = 0.1 + 0.9 cos 2πx,
+/// the first iterate overshoots far (g'(y₀) = 50 where y₀ ≈ 0) and the refreshed iteration
+/// does not get back within the sweep limit; the step is an error naming it, the state is left
+/// as it was. From 0.3 + 0.7 cos 2πx it converges, after many refreshes.
+#[test]
+fn newton_from_a_poor_start_is_an_error_not_a_wrong_step() {
+    let p = ReactionDiffusion::new(128, true).unwrap();
+    let mut st = EcStepper::with_nodes(&p, 2, 2, 0.1, solver(StageSolver::Newton)).unwrap();
+    let u0 = p.initial_value(0.1, 0.9);
+    let mut u = u0.clone();
+    let err = st.step(&mut u).unwrap_err();
+    println!("N = 128, y₀ = 0.1 + 0.9 cos 2πx: {err}");
+    assert!(matches!(err, Error::NoConvergence { .. }), "{err}");
+    assert_eq!(u, u0);
+    let mut u = p.initial_value(0.3, 0.7);
+    let rep = st.step(&mut u).unwrap();
+    println!("N = 128, y₀ = 0.3 + 0.7 cos 2πx: {rep:?}");
+    assert!(rep.converged && rep.newton_refreshes >= 1, "{rep:?}");
+}
+
+#[test]
+fn newton_is_simplified_newton_while_that_contracts() {
+    // Allen–Cahn at h = 1e-5: the frozen Jacobian contracts fast; Newton never refreshes and
+    // gives the same steps, bit for bit, with one Jacobian per step.
+    let p = AllenCahn::new(true).unwrap();
+    let h = 1e-5;
+    let mut a = EcStepper::with_nodes(&p, 2, 2, h, solver(StageSolver::Newton)).unwrap();
+    let mut b = EcStepper::with_nodes(&p, 2, 2, h, solver(StageSolver::SimplifiedNewton)).unwrap();
+    let (mut ua, mut ub) = (p.initial_value(), p.initial_value());
+    for n in 0..20 {
+        let ra = a.step(&mut ua).unwrap();
+        let rb = b.step(&mut ub).unwrap();
+        assert_eq!(ra, rb, "step {n}");
+        assert_eq!((ra.jacobian_evals, ra.newton_refreshes), (1, 0), "step {n}");
+        assert_eq!(ua, ub, "step {n}");
+    }
+    // Fixed-point sweeps form no Jacobian.
+    let mut c = EcStepper::with_nodes(&p, 2, 2, h, SolverSettings::default()).unwrap();
+    let mut uc = p.initial_value();
+    assert_eq!(c.step(&mut uc).unwrap().jacobian_evals, 0);
 }

@@ -5,7 +5,9 @@
 use ecr_runtime::Error;
 use ecr_runtime::problems::{Duffing, Fpu};
 use ecr_runtime::second_order::TcStepper;
-use ecr_runtime::stepper::{EcStepper, Predictor, SolverSettings, StageSolver, SweepLimit};
+use ecr_runtime::stepper::{
+    EcStepper, Predictor, SolverSettings, StageScale, StageSolver, SweepLimit,
+};
 use proptest::prelude::*;
 use proptest::test_runner::{Config as ProptestConfig, RngSeed};
 
@@ -50,10 +52,11 @@ fn settings() -> impl Strategy<Value = SolverSettings> {
         0usize..8,
         any::<bool>(),
         any::<bool>(),
-        any::<bool>(),
+        0usize..3,
+        prop::option::of(any_f64()),
     )
         .prop_map(
-            |(tolerance, max_sweeps, accept, extrapolate, newton)| SolverSettings {
+            |(tolerance, max_sweeps, accept, extrapolate, solver, atol)| SolverSettings {
                 tolerance,
                 max_sweeps,
                 on_limit: if accept {
@@ -66,11 +69,12 @@ fn settings() -> impl Strategy<Value = SolverSettings> {
                 } else {
                     Predictor::Constant
                 },
-                solver: if newton {
-                    StageSolver::Newton
-                } else {
-                    StageSolver::FixedPoint
-                },
+                solver: [
+                    StageSolver::FixedPoint,
+                    StageSolver::Newton,
+                    StageSolver::SimplifiedNewton,
+                ][solver],
+                scale: atol.map_or(StageScale::Global, |atol| StageScale::PerComponent { atol }),
                 compensated: !accept,
             },
         )

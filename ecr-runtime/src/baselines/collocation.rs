@@ -243,6 +243,8 @@ impl<S: System> ExpAvf<S> {
             residual,
             g_evals,
             converged,
+            jacobian_evals: 0,
+            newton_refreshes: 0,
         })
     }
 }

@@ -389,6 +389,8 @@ impl<S: System> Dop853Stepper<S> {
             residual: 0.0,
             g_evals: stats.f_evals,
             converged: true,
+            jacobian_evals: 0,
+            newton_refreshes: 0,
         })
     }
 }

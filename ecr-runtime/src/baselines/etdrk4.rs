@@ -171,6 +171,8 @@ impl<S: System> Etdrk4<S> {
             residual: 0.0,
             g_evals: 4,
             converged: true,
+            jacobian_evals: 0,
+            newton_refreshes: 0,
         })
     }
 }

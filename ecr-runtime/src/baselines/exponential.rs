@@ -482,6 +482,8 @@ impl<S: System, J: Fn(&[f64], &mut DMatrix<f64>)> Exprb43<S, J> {
             residual: 0.0,
             g_evals,
             converged: true,
+            jacobian_evals: 0,
+            newton_refreshes: 0,
         })
     }
 }
@@ -693,6 +695,8 @@ impl<S: System> HochOst4<S> {
             residual: 0.0,
             g_evals: 5,
             converged: true,
+            jacobian_evals: 0,
+            newton_refreshes: 0,
         })
     }
 }

@@ -390,6 +390,8 @@ impl<S: System> Exprb43Krylov<S> {
             residual: 0.0,
             g_evals: self.g_evals,
             converged: true,
+            jacobian_evals: 0,
+            newton_refreshes: 0,
         })
     }
 }

@@ -265,6 +265,8 @@ impl<Op: LinearOperator, R: Fn(f64) -> f64> SplitStep<Op, R> {
             residual: 0.0,
             g_evals,
             converged: true,
+            jacobian_evals: 0,
+            newton_refreshes: 0,
         })
     }
 }

@@ -308,6 +308,8 @@ impl<S: System> LinearFlowSplitting<S> {
             residual: 0.0,
             g_evals,
             converged: true,
+            jacobian_evals: 0,
+            newton_refreshes: 0,
         })
     }
 }
@@ -457,6 +459,8 @@ impl KickState {
             residual: 0.0,
             g_evals,
             converged: true,
+            jacobian_evals: 0,
+            newton_refreshes: 0,
         })
     }
 }
