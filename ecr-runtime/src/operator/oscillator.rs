@@ -18,8 +18,8 @@
 //! ```
 //!
 //! because `(tA_l)² = −θ² I`: the even powers give `a`, the odd ones `t A_l` times a series in
-//! θ². So a node of the bank is three numbers per mode and per function, from the scalar
-//! functions at the imaginary argument `iθ`:
+//! θ². So a node of the bank is three distinct numbers per mode and per function (stored as the
+//! block's four entries), from the scalar functions at the imaginary argument `iθ`:
 //!
 //! * φ-banks: `a = φᵗ_k(θ²)`, `b = t φᵗ_{k+1}(θ²)` ([`phi_trig`](crate::phi::phi_trig));
 //! * Legendre-kernel banks: `e^{iθ}` and `Ψ_j(τ, iθ/τ)` from the complex Legendre kernels
