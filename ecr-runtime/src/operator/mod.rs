@@ -133,6 +133,13 @@ impl NodeFunctions {
         self.legendre.is_some() && self.taus[i] == 1.0
     }
 
+    /// The Legendre kernels and the node map `K(τ_i)` of node i (Legendre banks only).
+    pub(crate) fn legendre_map(&self, i: usize) -> Option<(&crate::phi::LegendreKernels, &[f64])> {
+        self.legendre
+            .as_ref()
+            .map(|(k, maps)| (k, maps[i].as_slice()))
+    }
+
     /// `e^x`, `Ψ_0(τ_i, ·) … Ψ_{n−1}(τ_i, ·)` for the nodes `taus`.
     pub(crate) fn legendre(taus: &[f64], n: usize) -> Self {
         let k = crate::phi::LegendreKernels::new(n);

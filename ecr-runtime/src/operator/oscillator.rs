@@ -30,8 +30,8 @@
 //!
 //! The damped form `q'' − Nq' + Ωq = …` with N sharing Ω's eigenvectors (modal damping ν_l,
 //! [`Oscillator::damped`]) has the blocks `[[0, 1], [−λ_l, ν_l]]`; their functions are general
-//! 2 × 2 matrices, computed per mode by the dense algorithms on the balanced block (see
-//! `damped_blocks`), four numbers per mode and function.
+//! 2 × 2 matrices, computed per mode by the dense algorithms on the balanced block, four
+//! numbers per mode and function.
 //!
 //! `combine` then costs 4(m + 1) multiply-adds per mode and node (plus, for a dense Ω, the
 //! transforms `Vᵀ` of y₀ and the m moments, shared by all nodes, and one `V` per node).
@@ -52,10 +52,10 @@ use num_complex::Complex64;
 
 use super::dense::{gemv, gemv_tr, matvec_dd};
 use super::{
-    DD_PROPAGATOR_MAX_DIM, LinearOperator, PhiBank, apply_shape, check_bank_scale,
+    DD_PROPAGATOR_MAX_DIM, LinearOperator, NodeFunctions, PhiBank, apply_shape, check_bank_scale,
     check_bank_values, combine_shape,
 };
-use crate::phi::{LegendreKernels, expm_dd, phi_trig};
+use crate::phi::{expm_dd, phi_trig};
 use crate::second_order::Omega;
 use crate::{Error, Result};
 
@@ -129,82 +129,71 @@ impl Oscillator {
     }
 }
 
-/// How the bank's node functions are evaluated.
-enum Functions {
-    /// φ₀..φ_p.
-    Phi,
-    /// `e^x` and the Legendre kernels Ψ_0..Ψ_{n−1}, with the node maps `K(τ_i)`.
-    Legendre(LegendreKernels, Vec<Vec<f64>>),
-}
-
-impl Functions {
-    /// `out[k] = (a_k, s_k)` for slot k at node i with `t = τ_i h` and `θ = t√λ`: the block
-    /// `[[a, t s], [−λ t s, a]]`.
-    fn block_parts(&self, i: usize, t: f64, lambda: f64, out: &mut [(f64, f64)], buf: &mut Buf) {
-        let p = out.len() - 1;
-        let theta = t * lambda.sqrt();
-        match self {
-            Functions::Phi => {
-                // a = φᵗ_k(θ²), s = φᵗ_{k+1}(θ²).
-                buf.real.resize(p + 2, 0.0);
-                phi_trig(theta * theta, &mut buf.real);
-                for (k, o) in out.iter_mut().enumerate() {
-                    *o = (buf.real[k], buf.real[k + 1]);
-                }
+/// `out[k] = (a_k, s_k)` for slot k at node i of the functions `f`, with `t = τ_i h` and
+/// `θ = t√λ`: the block `[[a, t s], [−λ t s, a]]` (see the module docs).
+fn trig_block_parts(
+    f: &NodeFunctions,
+    i: usize,
+    t: f64,
+    lambda: f64,
+    out: &mut [(f64, f64)],
+    buf: &mut Buf,
+) {
+    let p = out.len() - 1;
+    let theta = t * lambda.sqrt();
+    match f.legendre_map(i) {
+        None => {
+            // a = φᵗ_k(θ²), s = φᵗ_{k+1}(θ²).
+            buf.real.resize(p + 2, 0.0);
+            phi_trig(theta * theta, &mut buf.real);
+            for (k, o) in out.iter_mut().enumerate() {
+                *o = (buf.real[k], buf.real[k + 1]);
             }
-            Functions::Legendre(k, maps) => {
-                buf.complex.resize(p + 1, Complex64::new(0.0, 0.0));
-                k.row_complex(&maps[i], Complex64::new(0.0, theta), &mut buf.complex);
-                if theta == 0.0 {
-                    // e^0 = 1 with Im e^{iθ}/θ → 1; Ψ_j(τ, 0) with Im Ψ_j/θ → ∫(1 − ξ) P̃_j(τξ)
-                    // dξ = ½ K_j0 − K_j1/6 (1 − ξ = (P̃_0 − P̃_1)/2, orthogonal to P̃_m, m ≥ 2).
-                    let n = k.n();
-                    out[0] = (1.0, 1.0);
-                    for (j, o) in out.iter_mut().enumerate().skip(1) {
-                        let row = &maps[i][(j - 1) * n..j * n];
-                        let k1 = if j >= 2 { row[1] } else { 0.0 };
-                        *o = (buf.complex[j].re, 0.5 * row[0] - k1 / 6.0);
-                    }
-                } else {
-                    for (o, v) in out.iter_mut().zip(&buf.complex) {
-                        *o = (v.re, v.im / theta);
-                    }
+        }
+        Some((k, map)) => {
+            buf.complex.resize(p + 1, Complex64::new(0.0, 0.0));
+            f.complex(i, Complex64::new(0.0, theta), &mut buf.complex);
+            if theta == 0.0 {
+                // e^0 = 1 with Im e^{iθ}/θ → 1; Ψ_j(τ, 0) with Im Ψ_j/θ → ∫(1 − ξ) P̃_j(τξ)
+                // dξ = ½ K_j0 − K_j1/6 (1 − ξ = (P̃_0 − P̃_1)/2, orthogonal to P̃_m, m ≥ 2).
+                let n = k.n();
+                out[0] = (1.0, 1.0);
+                for (j, o) in out.iter_mut().enumerate().skip(1) {
+                    let row = &map[(j - 1) * n..j * n];
+                    let k1 = if j >= 2 { row[1] } else { 0.0 };
+                    *o = (buf.complex[j].re, 0.5 * row[0] - k1 / 6.0);
+                }
+            } else {
+                for (o, v) in out.iter_mut().zip(&buf.complex) {
+                    *o = (v.re, v.im / theta);
                 }
             }
         }
     }
 }
 
-impl Functions {
-    /// The `p + 1` functions of slot k = 0..=p at node i of the damped mode block
-    /// `t [[0, 1], [−λ, ν]]`, as 2 × 2 matrices `[a, b, c, e]` (row-major), by the dense
-    /// algorithms on the balanced block: with `D = diag(√λ, 1)` (λ > 1) the block is
-    /// `D⁻¹ t[[0, √λ], [−√λ, ν]] D`, whose entries are of one size, and `f(X) = D⁻¹ f(DXD⁻¹) D`.
-    fn damped_blocks(
-        &self,
-        i: usize,
-        t: f64,
-        lambda: f64,
-        nu: f64,
-        p: usize,
-    ) -> Result<Vec<[f64; 4]>> {
-        let w = if lambda > 1.0 { lambda.sqrt() } else { 1.0 };
-        // D X D⁻¹ = [[0, t w], [−t λ/w, t ν]].
-        let x = DMatrix::from_row_slice(2, 2, &[0.0, t * w, -t * lambda / w, t * nu]);
-        let mats = match self {
-            Functions::Phi => crate::phi::phi_dense(&x, p)?,
-            Functions::Legendre(k, maps) => {
-                let mut m = crate::phi::phi_dense(&x, 0)?;
-                m.extend(k.rows_dense(&maps[i], &x)?);
-                m
-            }
-        };
-        // Undo the balancing: f(X)_01 = f̃_01 / w, f(X)_10 = f̃_10 · w.
-        Ok(mats
-            .iter()
-            .map(|m| [m[(0, 0)], m[(0, 1)] / w, m[(1, 0)] * w, m[(1, 1)]])
-            .collect())
-    }
+/// The `p + 1` functions of slot k = 0..=p at node i of the damped mode block
+/// `t [[0, 1], [−λ, ν]]`, as 2 × 2 matrices `[a, b, c, e]` (row-major), by the dense
+/// algorithms (`NodeFunctions::dense`) on the balanced block: with `D = diag(√λ, 1)` (λ > 1)
+/// the block is `D⁻¹ t[[0, √λ], [−√λ, ν]] D`, whose entries are of one size, and
+/// `f(X) = D⁻¹ f(DXD⁻¹) D`.
+fn damped_blocks(
+    f: &NodeFunctions,
+    i: usize,
+    t: f64,
+    lambda: f64,
+    nu: f64,
+    p: usize,
+) -> Result<Vec<[f64; 4]>> {
+    let w = if lambda > 1.0 { lambda.sqrt() } else { 1.0 };
+    // D X D⁻¹ = [[0, t w], [−t λ/w, t ν]].
+    let x = DMatrix::from_row_slice(2, 2, &[0.0, t * w, -t * lambda / w, t * nu]);
+    let (mats, _) = f.dense(i, &x, p)?;
+    // Undo the balancing: f(X)_01 = f̃_01 / w, f(X)_10 = f̃_10 · w.
+    Ok(mats
+        .iter()
+        .map(|m| [m[(0, 0)], m[(0, 1)] / w, m[(1, 0)] * w, m[(1, 1)]])
+        .collect())
 }
 
 /// Scratch for building a bank.
@@ -282,18 +271,16 @@ impl LinearOperator for Oscillator {
     }
 
     fn phi_bank(&self, h: f64, taus: &[f64], p: usize) -> Result<OscillatorBank> {
-        self.bank(h, taus, p, Functions::Phi)
+        self.bank(h, taus, p, NodeFunctions::phi())
     }
 
     fn kernel_bank(&self, h: f64, taus: &[f64], n: usize) -> Result<OscillatorBank> {
-        let k = LegendreKernels::new(n);
-        let maps = taus.iter().map(|&t| k.node_map(t)).collect();
-        self.bank(h, taus, n, Functions::Legendre(k, maps))
+        self.bank(h, taus, n, NodeFunctions::legendre(taus, n))
     }
 }
 
 impl Oscillator {
-    fn bank(&self, h: f64, taus: &[f64], p: usize, f: Functions) -> Result<OscillatorBank> {
+    fn bank(&self, h: f64, taus: &[f64], p: usize, f: NodeFunctions) -> Result<OscillatorBank> {
         let lambda = self.omega.eigenvalues();
         let numax = self
             .damping
@@ -311,7 +298,7 @@ impl Oscillator {
             for (l, &lam) in lambda.iter().enumerate() {
                 let nu = self.damping.as_ref().map_or(0.0, |d| d[l]);
                 if nu == 0.0 {
-                    f.block_parts(i, t, lam, &mut parts, &mut buf);
+                    trig_block_parts(&f, i, t, lam, &mut parts, &mut buf);
                     for (k, &(a, s)) in parts.iter().enumerate() {
                         let base = (i * (p + 1) + k) * 4 * n + l;
                         let b = t * s;
@@ -321,7 +308,7 @@ impl Oscillator {
                         vals[base + 3 * n] = a;
                     }
                 } else {
-                    let blocks = f.damped_blocks(i, t, lam, nu, p)?;
+                    let blocks = damped_blocks(&f, i, t, lam, nu, p)?;
                     for (k, m) in blocks.iter().enumerate() {
                         let base = (i * (p + 1) + k) * 4 * n + l;
                         vals[base] = m[0];
@@ -333,9 +320,9 @@ impl Oscillator {
             }
         }
         check_bank_values(vals.iter().copied())?;
-        let dd = match (&f, taus.iter().position(|&t| t == 1.0)) {
-            (Functions::Legendre(..), Some(node)) => self.dd_propagator(h, node)?,
-            _ => None,
+        let dd = match (0..taus.len()).find(|&i| f.carries_dd(i)) {
+            Some(node) => self.dd_propagator(h, node)?,
+            None => None,
         };
         Ok(OscillatorBank {
             n,
