@@ -24,9 +24,9 @@
 //!
 //! Long runs: where the bank carries the propagator beyond f64 ([`PhiBank::propagate_dd`]:
 //! every operator kind, dense and symmetric ones up to `DD_PROPAGATOR_MAX_DIM`), the new
-//! state is `e^{hA} y₀` in double-double plus the nonlinear part plus `e^{hA} c`, where `c` is the rounding error of
-//! the previous state (compensated summation; valid while the caller passes back the state the
-//! last step returned). An f64 propagator and an f64 state rounded the same way every period
+//! state is `e^{hA} y₀` in double-double plus the nonlinear part plus `e^{hA} c`, where `c` is
+//! the rounding error of the previous state (compensated summation; valid while the caller
+//! passes back the state the last step returned). An f64 propagator and an f64 state rounded the same way every period
 //! of an oscillation make the energy drift linearly (Duffing, r = 3, h = 0.01: 7.5e−17 per
 //! step); with both carried it is 6e−23 per step over 1e7 steps.
 //!

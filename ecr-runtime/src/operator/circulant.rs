@@ -415,11 +415,7 @@ impl<B: SpectralBasis> PhiBank for SpectralBank<B> {
         for (b, y) in ws.buf.iter_mut().zip(y0) {
             *b = Complex64::new(*y, 0.0);
         }
-        self.basis.forward(&mut ws.buf, &mut ws.scratch);
-        for (b, dv) in ws.buf.iter_mut().zip(inc) {
-            *b *= dv;
-        }
-        self.basis.inverse(&mut ws.buf, &mut ws.scratch);
+        self.basis.apply_diagonal(inc, &mut ws.buf, &mut ws.scratch);
         add_increment(y0, ws.buf.iter().map(|b| b.re), hi, lo);
         true
     }
@@ -431,11 +427,7 @@ impl<B: SpectralBasis> PhiBank for SpectralBank<B> {
         for (b, xv) in ws.buf.iter_mut().zip(x) {
             *b = Complex64::new(*xv, 0.0);
         }
-        self.basis.forward(&mut ws.buf, &mut ws.scratch);
-        for (b, fv) in ws.buf.iter_mut().zip(f) {
-            *b *= fv;
-        }
-        self.basis.inverse(&mut ws.buf, &mut ws.scratch);
+        self.basis.apply_diagonal(f, &mut ws.buf, &mut ws.scratch);
         for (ov, b) in out.iter_mut().zip(&ws.buf) {
             *ov = b.re;
         }

@@ -28,6 +28,16 @@ pub trait SpectralBasis: Clone {
 
     /// `u ← V u`. Does not allocate.
     fn inverse(&self, u: &mut [Complex64], s: &mut Self::Scratch);
+
+    /// `u ← V diag(f) V⁻¹ u`: a diagonal in the eigenbasis, through the transforms. Does not
+    /// allocate.
+    fn apply_diagonal(&self, f: &[Complex64], u: &mut [Complex64], s: &mut Self::Scratch) {
+        self.forward(u, s);
+        for (b, fv) in u.iter_mut().zip(f) {
+            *b *= fv;
+        }
+        self.inverse(u, s);
+    }
 }
 
 /// A real symmetric operator C that can be diagonalised, `C = V diag(λ) V⁻¹` with real λ:
@@ -251,11 +261,7 @@ impl<B: SpectralBasis> PhiBank for SkewPairBank<B> {
         for ((b, a), c) in ws.buf.iter_mut().zip(yp).zip(yq) {
             *b = Complex64::new(*a, *c);
         }
-        self.basis.forward(&mut ws.buf, &mut ws.scratch);
-        for (b, dv) in ws.buf.iter_mut().zip(inc) {
-            *b *= dv;
-        }
-        self.basis.inverse(&mut ws.buf, &mut ws.scratch);
+        self.basis.apply_diagonal(inc, &mut ws.buf, &mut ws.scratch);
         let (hp, hq) = hi.split_at_mut(n);
         let (lp, lq) = lo.split_at_mut(n);
         add_increment(yp, ws.buf.iter().map(|b| b.re), hp, lp);
@@ -274,11 +280,7 @@ impl<B: SpectralBasis> PhiBank for SkewPairBank<B> {
         for ((b, a), c) in ws.buf.iter_mut().zip(xp).zip(xq) {
             *b = Complex64::new(*a, *c);
         }
-        self.basis.forward(&mut ws.buf, &mut ws.scratch);
-        for (b, fv) in ws.buf.iter_mut().zip(f) {
-            *b *= fv;
-        }
-        self.basis.inverse(&mut ws.buf, &mut ws.scratch);
+        self.basis.apply_diagonal(f, &mut ws.buf, &mut ws.scratch);
         let (op, oq) = out.split_at_mut(n);
         for ((a, b), w) in op.iter_mut().zip(oq.iter_mut()).zip(&ws.buf) {
             *a = w.re;
