@@ -13,7 +13,7 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use ecr::ecr_method;
 use ecr::runtime::operator::{Dense, DenseStatic, PhiBank};
 use ecr::runtime::problems::{Duffing, Wind};
-use ecr::runtime::stepper::{Buffers, EcStepper, SolverSettings, StaticBuffers, Stepper};
+use ecr::runtime::stepper::{EcStepper, SolverSettings, Stepper, gemv_cm};
 use ecr::runtime::system::Semilinear;
 use nalgebra::{DMatrix, SMatrix};
 use std::hint::black_box;
@@ -85,15 +85,8 @@ fn bench_problem<G: Fn(&[f64], &mut [f64]) + Copy>(
             bank.combine(0..s, black_box(&y0), &[], &[], &mut props, &mut ());
         }
         for _ in 0..sweeps {
-            // The stepper's own fused sweep for its buffers (constant s and d, unrolled).
-            StaticBuffers::<2, 3, 3>::fused_sweep(
-                &mats,
-                &props,
-                black_box(&g_in),
-                &mut stages,
-                s,
-                2,
-            );
+            // The stepper's own fused sweep, sizes constant (as the fixed-order stepper has them).
+            gemv_cm(&mats, 6, [black_box(&g_in), &[]], Some(&props), &mut stages);
         }
         for _ in 0..STEPS {
             bank.combine(

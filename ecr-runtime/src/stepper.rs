@@ -54,6 +54,41 @@ pub const ROUNDOFF_RESIDUAL: f64 = 100.0 * f64::EPSILON;
 /// stagnation: the iteration no longer makes progress.
 pub const STAGNATION_THETA: f64 = 0.9;
 
+/// The share of the stage tolerance that the estimated effect of the remaining stage error on
+/// y₁ may take ([`y1_converged`]).
+pub const Y1_SHARE: f64 = 1.0 / 16.0;
+
+/// ECrP's second stopping rule, for fast contractions: the stage iteration may stop before its
+/// update is within `tolerance` when what is left does not reach y₁.
+///
+/// y₁ is computed from g at the stages, and a stage error e reaches y₁ through the same kind of
+/// map as it reaches the next iterate (the kernels at τ = 1 instead of τ = cᵢ), i.e. reduced by
+/// about the contraction θ. So the iteration stops once the estimated stage error e = θ/(1 −
+/// θ)·r is within `tolerance` and its effect on y₁, θ·e, is within [`Y1_SHARE`] of it (below
+/// round-off with the default tolerance). θ is the larger of this sweep's r/p and `theta_floor`,
+/// the largest ratio seen in the step before: a ratio of two updates can be small by chance
+/// where the contraction alternates between fast and slow (observed on HBVM(5,2): ratios 0.6,
+/// 0.017, 0.3, 0.008, …, where the latest ratio alone stopped sweeps early and the energy
+/// error over 2000 steps grew from 3e−14 to 1.3e−12), while the contraction of a step size
+/// changes little from one step to the next. With θ < ½ only.
+///
+/// This saves the last sweep where the contraction is fast: Duffing (ω = 20, r = 6, h = 1/16)
+/// contracts by θ ≈ 2e−6 per sweep from a predictor 2e−5 off: updates 5e−5, 1e−10, 3e−16; the
+/// third sweep only confirmed what the second had left (e ≈ 3e−16, θe ≈ 1e−21).
+#[inline]
+pub fn y1_converged(residual: f64, previous: f64, theta_floor: f64, tolerance: f64) -> bool {
+    let (r, p) = (residual, previous);
+    if !(r < p && p.is_finite()) {
+        return false;
+    }
+    let theta = (r / p).max(theta_floor);
+    if !(theta < 0.5) {
+        return false;
+    }
+    let e = theta / (1.0 - theta) * r;
+    e <= tolerance && theta * e <= Y1_SHARE * tolerance
+}
+
 /// The stopping rule of the fixed-point sweeps, shared by every implicit stepper.
 ///
 /// With θ = ‖ΔYₖ‖/‖ΔYₖ₋₁‖ the observed contraction, the distance to the fixed point is about
@@ -66,6 +101,8 @@ pub const STAGNATION_THETA: f64 = 0.9;
 /// of 1e−15 leaves an error of 1.5e−15, and "no longer halving" is not stagnation there), and
 /// the estimate alone stops fast contractions (θ = 0.01) with an error of `tolerance` where one
 /// more cheap sweep would reach round-off.
+///
+/// ECrP adds [`y1_converged`] to this rule.
 ///
 /// Division-free (it runs once per sweep on the hot path): with θ = r/p, θ/(1 − θ) = r/(p − r),
 /// so the estimate is r when 2r ≤ p (or θ ≥ 1) and r²/(p − r) otherwise.
@@ -444,18 +481,37 @@ impl Kernel for RuntimeKernel {
     }
 }
 
-/// `m_k = Σ_j w[k·s + j] g_j`, k < r, each sum from 0.0 in the order j = 0, 1, ….
+/// `m_k = Σ_j w[k·s + j] g_j`, k < r, each sum from 0.0 in the order j = 0, 1, …. Components
+/// go in blocks of 8, 4, 2 and 1 whose sums stay in registers (at small d a sum through memory
+/// costs a store-to-load round trip per term).
 fn accumulate(w: &[f64], r: usize, s: usize, g: &[f64], m: &mut [f64], d: usize) {
-    for k in 0..r {
-        let mk = &mut m[k * d..(k + 1) * d];
-        mk.fill(0.0);
-        for j in 0..s {
-            let wkj = w[k * s + j];
-            for (x, gj) in mk.iter_mut().zip(&g[j * d..(j + 1) * d]) {
-                *x += wkj * gj;
-            }
+    let g = &g[..s * d];
+    for (k, mk) in m[..r * d].chunks_exact_mut(d).enumerate() {
+        let wk = &w[k * s..(k + 1) * s];
+        let mut a0 = 0;
+        while a0 < d {
+            a0 += match d - a0 {
+                8.. => accumulate_rows::<8>(wk, g, mk, a0, d),
+                4.. => accumulate_rows::<4>(wk, g, mk, a0, d),
+                2.. => accumulate_rows::<2>(wk, g, mk, a0, d),
+                _ => accumulate_rows::<1>(wk, g, mk, a0, d),
+            };
         }
     }
+}
+
+/// Components `a0..a0 + N` of one moment of [`accumulate`]; returns N.
+#[inline(always)]
+fn accumulate_rows<const N: usize>(wk: &[f64], g: &[f64], mk: &mut [f64], a0: usize, d: usize) -> usize {
+    let mut acc = [0.0_f64; N];
+    for (j, &wkj) in wk.iter().enumerate() {
+        let gj: &[f64; N] = g[j * d + a0..j * d + a0 + N].try_into().expect("N components");
+        for (x, gv) in acc.iter_mut().zip(gj) {
+            *x += wkj * gv;
+        }
+    }
+    mk[a0..a0 + N].copy_from_slice(&acc);
+    N
 }
 
 /// Mutable views of a stepper's stage state: y₀ (d), stages and their next iterate (s·d),
@@ -505,12 +561,9 @@ pub trait Buffers: Sized {
     fn y0(&self) -> &[f64];
     /// The moments of the last step.
     fn moments(&self) -> &[f64];
-    /// [`apply_stage_matrices`] for these sizes (fixed-size storage passes its compile-time s
-    /// and d, so that the loops unroll).
-    #[inline(always)]
-    fn fused_sweep(mats: &[f64], props: &[f64], g: &[f64], out: &mut [f64], s: usize, d: usize) {
-        apply_stage_matrices(mats, props, g, out, s, d);
-    }
+    /// (r, s, d) where they are compile-time constants (fixed-size storage), so that a step's
+    /// loops over them unroll.
+    const SIZES: Option<(usize, usize, usize)> = None;
 }
 
 /// Heap buffers, allocated once at construction (any d known at run time).
@@ -630,10 +683,7 @@ impl<const D: usize, const S: usize, const R: usize, const B: usize> Buffers
     fn moments(&self) -> &[f64] {
         self.moments.as_flattened().as_flattened()
     }
-    #[inline(always)]
-    fn fused_sweep(mats: &[f64], props: &[f64], g: &[f64], out: &mut [f64], _: usize, _: usize) {
-        apply_stage_matrices(mats, props, g, out, S, B * D);
-    }
+    const SIZES: Option<(usize, usize, usize)> = Some((R, S, B * D));
 }
 
 /// ECrP for a [`System`] with kernel `K` and stage storage `B`.
@@ -648,15 +698,18 @@ pub struct Stepper<K: Kernel, S: System, B: Buffers> {
     /// extrapolating predictor).
     coef: Vec<f64>,
     scratch: Vec<f64>,
-    /// The stage matrices of the fused sweep ([`stage_matrices`]), where it is cheaper (see
-    /// [`fuses_stages`]); otherwise `None` and each sweep forms the moments and combines.
-    fused: Option<Vec<f64>>,
+    /// The step as dense maps ([`FusedMaps`]), where that is cheaper (see [`fuses_stages`]);
+    /// otherwise `None` and each sweep forms the moments and combines.
+    fused: Option<FusedMaps>,
     buf: B,
     /// The buffers hold a completed step (y₀, moments, and its end in `last`) for this h.
     have_previous: bool,
     /// Newton data ([`StageSolver::Newton`], [`StageSolver::SimplifiedNewton`]), built at the
     /// first step for this h.
     newton: Option<Box<NewtonState>>,
+    /// The largest ratio of consecutive stage updates in the last completed step (1 when there
+    /// is none): the floor of the contraction estimate of [`y1_converged`].
+    theta: f64,
 }
 
 /// The most numbers the Newton iteration holds at once: the stage matrices and the Newton
@@ -767,12 +820,10 @@ fn subtract_column_block(
     s: usize,
     d: usize,
 ) {
-    for i in 0..s {
-        let q = &q[(i * s + k) * d * d..(i * s + k + 1) * d * d];
-        let block = nalgebra::DMatrixView::from_slice(q, d, d) * jac;
-        let mut view = nm.view_mut((i * d, k * d), (d, d));
-        view -= block;
-    }
+    let sd = s * d;
+    let q = nalgebra::DMatrixView::from_slice(&q[k * d * sd..(k + 1) * d * sd], sd, d);
+    let mut view = nm.columns_mut(k * d, d);
+    view -= q * jac;
 }
 
 /// The LU factorisation of the Newton matrix `nm`.
@@ -859,8 +910,9 @@ fn per_component_update(new: &[f64], old: &[f64], atol: f64) -> f64 {
 /// The stage matrices of ECrP: `M_ik = Σ_j coef_ij ℓ_jk Ψ_j(cᵢ, hA)` (`coef_ij = h cᵢ (2j+1)`,
 /// `ℓ_jk = b_k P̃_j(c_k)`), so that the stage equations read `Y_i = e^{cᵢhA} y₀ + Σ_k M_ik
 /// g(Y_k)`: the moments and the kernels fused into one linear map, and `∂Φ_i/∂g_k` for
-/// Newton. Block (i, k) is the d × d matrix at `(i·s + k)·d²`, column-major; each entry is
-/// summed over j = 0, 1, … from 0.0. Built from `s·r·d` applications of the kernel bank
+/// Newton. One column-major `sd × sd` matrix: entry (a, b) of block `M_ik` is at row `i·d + a`
+/// of column `k·d + b`, so that a sweep is one matrix–vector product ([`gemv_cm`]); each entry
+/// is summed over j = 0, 1, … from 0.0. Built from `s·r·d` applications of the kernel bank
 /// (once per step size).
 pub fn stage_matrices<K: Kernel, Bk: PhiBank>(
     kernel: &K,
@@ -881,8 +933,8 @@ pub fn stage_matrices<K: Kernel, Bk: PhiBank>(
             ell[j * s + k] = mom[j];
         }
     }
-    let dd = d * d;
-    let mut q = vec![0.0; s * s * dd];
+    let sd = s * d;
+    let mut q = vec![0.0; sd * sd];
     let (mut e, mut col) = (vec![0.0; d], vec![0.0; d]);
     for i in 0..s {
         for l in 0..d {
@@ -892,7 +944,7 @@ pub fn stage_matrices<K: Kernel, Bk: PhiBank>(
                 bank.apply(i, j + 1, &e, &mut col, ws);
                 for k in 0..s {
                     let c = coef[i * m + j] * ell[j * s + k];
-                    let start = (i * s + k) * dd + l * d;
+                    let start = (k * d + l) * sd + i * d;
                     for (a, b) in q[start..start + d].iter_mut().zip(&col) {
                         *a += c * b;
                     }
@@ -919,37 +971,147 @@ pub fn fuses_stages<Bk: PhiBank>(bank: &Bk, r: usize, s: usize) -> bool {
     })
 }
 
-/// The fused sweep: `out_i = props_i + Σ_k M_ik g_k` for i < s, with the stage matrices of
-/// [`stage_matrices`] and `props_i = e^{cᵢhA} y₀`. Each output starts from `props_i` and
-/// adds the blocks k = 0, 1, … column by column. Does not allocate.
+/// `out = init + M x` for a column-major matrix `M` with `rows` rows and `x = (x₁, x₂)` (two
+/// slices, read as one vector: `M` has `x₁.len() + x₂.len()` columns); `init` absent is zero.
+/// Each entry is summed from `init` over the columns in order, one product and one addition
+/// per column (no fused multiply-add), so that every caller rounds identically whatever it
+/// knows of the sizes at compile time. The rows go in blocks of 8, 4, 2 and 1 whose sums stay
+/// in registers. Does not allocate.
+///
+/// Every linear map of a fused step is one call: the sweep (`M` the stage matrices, `x` = g at
+/// the stages, `init` = `e^{cᵢhA} y₀`), the propagated starts, the predictor and the end of the
+/// step ([`FusedMaps`]).
 ///
 /// # Panics
-/// If `mats.len() < s²d²` or `props`, `g`, `out` are shorter than `s·d`.
-// Always inlined: in a fixed-order stepper s and d are then constants and the loops unroll.
+/// If `mat` has fewer than `rows · cols` entries, or `out` (and `init`) fewer than `rows`.
+// Always inlined: in a fixed-order stepper the sizes are constants and the loops unroll.
 #[inline(always)]
-pub fn apply_stage_matrices(
-    mats: &[f64],
-    props: &[f64],
-    g: &[f64],
+pub fn gemv_cm(mat: &[f64], rows: usize, xs: [&[f64]; 2], init: Option<&[f64]>, out: &mut [f64]) {
+    let cols = xs[0].len() + xs[1].len();
+    let (mat, out) = (&mat[..rows * cols], &mut out[..rows]);
+    let init = init.map(|v| &v[..rows]);
+    let mut r0 = 0;
+    while r0 < rows {
+        r0 += match rows - r0 {
+            8.. => gemv_rows::<8>(mat, rows, r0, xs, init, out),
+            4.. => gemv_rows::<4>(mat, rows, r0, xs, init, out),
+            2.. => gemv_rows::<2>(mat, rows, r0, xs, init, out),
+            _ => gemv_rows::<1>(mat, rows, r0, xs, init, out),
+        };
+    }
+}
+
+/// Rows `r0..r0 + N` of [`gemv_cm`]; returns N.
+#[inline(always)]
+fn gemv_rows<const N: usize>(
+    mat: &[f64],
+    rows: usize,
+    r0: usize,
+    xs: [&[f64]; 2],
+    init: Option<&[f64]>,
     out: &mut [f64],
-    s: usize,
+) -> usize {
+    let mut acc = [0.0_f64; N];
+    if let Some(init) = init {
+        acc.copy_from_slice(&init[r0..r0 + N]);
+    }
+    let mut col = r0;
+    for x in xs {
+        for &xc in x {
+            let m: &[f64; N] = mat[col..col + N].try_into().expect("N rows");
+            for (a, mv) in acc.iter_mut().zip(m) {
+                *a += mv * xc;
+            }
+            col += rows;
+        }
+    }
+    out[r0..r0 + N].copy_from_slice(&acc);
+    N
+}
+
+/// A small system's step as dense maps, built with the bank where [`fuses_stages`]: each linear
+/// map of a step is one column-major matrix applied by [`gemv_cm`], instead of `combine` calls
+/// (whose cost per call dominates at small d). Entries are the bank's functions scaled by the
+/// combine coefficients (`h τ (2j+1)` for the kernel of degree j), one rounding each.
+#[derive(Clone, Debug)]
+pub struct FusedMaps {
+    /// The stage matrices ([`stage_matrices`]): `sd × sd`.
+    pub stage: Vec<f64>,
+    /// `e^{cᵢhA}` stacked: `sd × d`.
+    pub props: Vec<f64>,
+    /// The end of the step, `d × (d + rd)`: `[e^{hA} | h(2j+1)Ψ_j(1, hA), j < r]`, applied to
+    /// `(y₀, L₀..L_{r−1})`.
+    pub end: Vec<f64>,
+    /// The extrapolating predictor, `sd × (d + rd)`: block row i is `[e^{(1+cᵢ)hA} | h(1+cᵢ)
+    /// (2j+1)Ψ_j(1+cᵢ, hA), j < r]`, applied to the previous step's `(y₀, L)`; empty without
+    /// the predictor.
+    pub pred: Vec<f64>,
+}
+
+/// Writes `scale ·` the bank's function `(i, k)` into rows `row0..row0 + d` and columns
+/// `col0..col0 + d` of the column-major matrix `mat` with `rows` rows (column l from the bank
+/// applied to the unit vector e_l: exact).
+#[allow(clippy::too_many_arguments)]
+fn bank_block<Bk: PhiBank>(
+    bank: &Bk,
+    ws: &mut Bk::Workspace,
+    (i, k): (usize, usize),
+    scale: f64,
+    mat: &mut [f64],
+    rows: usize,
+    (row0, col0): (usize, usize),
     d: usize,
 ) {
-    let (sd, dd) = (s * d, d * d);
-    let (mats, props, g, out) = (&mats[..s * s * dd], &props[..sd], &g[..sd], &mut out[..sd]);
+    let (mut e, mut col) = (vec![0.0; d], vec![0.0; d]);
+    for l in 0..d {
+        e.fill(0.0);
+        e[l] = 1.0;
+        bank.apply(i, k, &e, &mut col, ws);
+        let start = (col0 + l) * rows + row0;
+        for (a, c) in mat[start..start + d].iter_mut().zip(&col) {
+            *a = scale * c;
+        }
+    }
+}
+
+/// The [`FusedMaps`] of a bank built for the nodes `c₁..c_s`, 1 (and `1 + cᵢ` with the
+/// predictor), with its combine coefficients `coef`.
+fn fused_maps<K: Kernel, Bk: PhiBank>(
+    kernel: &K,
+    bank: &Bk,
+    coef: &[f64],
+    ws: &mut Bk::Workspace,
+    d: usize,
+    predictor: bool,
+) -> FusedMaps {
+    let (s, m) = (kernel.s(), kernel.r());
+    let (sd, cols) = (s * d, d + m * d);
+    let mut props = vec![0.0; sd * d];
     for i in 0..s {
-        for a in 0..d {
-            out[i * d + a] = props[i * d + a];
+        bank_block(bank, ws, (i, 0), 1.0, &mut props, sd, (i * d, 0), d);
+    }
+    // Rows `row0..row0 + d` of `[e^{τhA} | coef·Ψ_j(τ, hA)]` for the bank's node `node`.
+    let mut node_row = |mat: &mut [f64], rows: usize, node: usize, row0: usize| {
+        bank_block(bank, ws, (node, 0), 1.0, mat, rows, (row0, 0), d);
+        for j in 0..m {
+            let c = coef[node * m + j];
+            bank_block(bank, ws, (node, j + 1), c, mat, rows, (row0, d + j * d), d);
         }
-        for k in 0..s {
-            let blk = (i * s + k) * dd;
-            for b in 0..d {
-                let gb = g[k * d + b];
-                for a in 0..d {
-                    out[i * d + a] += mats[blk + b * d + a] * gb;
-                }
-            }
+    };
+    let mut end = vec![0.0; d * cols];
+    node_row(&mut end, d, s, 0);
+    let mut pred = Vec::new();
+    if predictor {
+        pred = vec![0.0; sd * cols];
+        for i in 0..s {
+            node_row(&mut pred, sd, s + 1 + i, i * d);
         }
+    }
+    FusedMaps {
+        stage: stage_matrices(kernel, bank, coef, ws, d),
+        props,
+        end,
+        pred,
     }
 }
 
@@ -1030,10 +1192,11 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             buf,
             have_previous: false,
             newton: None,
+            theta: 1.0,
         })
     }
 
-    /// The kernel bank for h, its combine coefficients, the fused stage matrices (where
+    /// The kernel bank for h, its combine coefficients, the step as dense maps (where
     /// [`fuses_stages`]) and a workspace.
     #[allow(clippy::type_complexity)]
     fn build_bank(
@@ -1044,7 +1207,7 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
     ) -> Result<(
         <S::Op as LinearOperator>::Bank,
         Vec<f64>,
-        Option<Vec<f64>>,
+        Option<FusedMaps>,
         <<S::Op as LinearOperator>::Bank as PhiBank>::Workspace,
     )> {
         if !(h.is_finite() && h > 0.0) {
@@ -1059,8 +1222,10 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
         let bank = system.linear().kernel_bank(h, &taus, r)?;
         let coef = kernel_coefficients(h, &taus, r);
         let mut ws = bank.workspace();
-        let fused = fuses_stages(&bank, r, kernel.s())
-            .then(|| stage_matrices(kernel, &bank, &coef, &mut ws, system.dim()));
+        let fused = fuses_stages(&bank, r, kernel.s()).then(|| {
+            let extrapolate = predictor == Predictor::Extrapolate;
+            fused_maps(kernel, &bank, &coef, &mut ws, system.dim(), extrapolate)
+        });
         Ok((bank, coef, fused, ws))
     }
 
@@ -1081,6 +1246,7 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
         self.h = h;
         self.have_previous = false;
         self.newton = None;
+        self.theta = 1.0;
         Ok(())
     }
 
@@ -1099,11 +1265,15 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
         self.kernel.s()
     }
 
-    /// The fused stage matrices ([`stage_matrices`]: block (i, k) at `(i·s + k)·d²`,
-    /// column-major) if this stepper fuses its sweeps ([`fuses_stages`]), for
-    /// [`apply_stage_matrices`].
+    /// The fused stage matrices ([`stage_matrices`]: one column-major `sd × sd` matrix, for
+    /// [`gemv_cm`]) if this stepper fuses its step ([`fuses_stages`]).
     pub fn stage_matrices(&self) -> Option<&[f64]> {
-        self.fused.as_deref()
+        self.fused.as_ref().map(|f| f.stage.as_slice())
+    }
+
+    /// The step as dense maps, if this stepper fuses it ([`fuses_stages`]).
+    pub fn fused_maps(&self) -> Option<&FusedMaps> {
+        self.fused.as_ref()
     }
 
     /// The φ-bank (kernel bank) of the step size: nodes c₁..c_s, then 1 (then 1 + cᵢ with the
@@ -1153,8 +1323,9 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
         &mut self,
         y: &mut [f64],
     ) -> Result<StepReport> {
-        let d = self.buf.dim();
-        let (s, m) = (self.kernel.s(), self.kernel.r());
+        // Compile-time constants for fixed-size storage (checked against the kernel and the
+        // system when the buffers were made).
+        let (m, s, d) = B::SIZES.unwrap_or((self.kernel.r(), self.kernel.s(), self.buf.dim()));
         if y.len() != d {
             return Err(Error::DimensionMismatch {
                 what: "state y",
@@ -1177,6 +1348,7 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             buf,
             have_previous,
             newton,
+            theta,
             ..
         } = self;
         buf.with_parts(|parts| {
@@ -1197,6 +1369,9 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             if !continuing {
                 comp.fill(0.0);
             }
+            // The contraction seen in the step before (none known after a jump).
+            let theta_floor = if continuing { *theta } else { 1.0 };
+            let mut theta_step = 0.0_f64;
             let extrapolate = continuing && settings.predictor == Predictor::Extrapolate;
             let mut jacobian_evals = 0;
             let mut jacobian_g_evals = 0;
@@ -1204,7 +1379,7 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                 let nw = newton.get_or_insert_with(|| {
                     // The fused sweeps' stage matrices where there are some (the same numbers).
                     let q = match fused {
-                        Some(q) => q.clone(),
+                        Some(f) => f.stage.clone(),
                         None => stage_matrices(&*kernel, &*bank, coef, ws, d),
                     };
                     Box::new(NewtonState::new(q, d))
@@ -1258,7 +1433,9 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                 // Start: the previous step's continuous solution at τ = 1 + cᵢ (y₀ and the
                 // moments still hold that step's values).
                 let pred = (s + 1) * m..(2 * s + 1) * m;
-                if B::LOCAL_STAGES {
+                if let Some(f) = fused {
+                    gemv_cm(&f.pred, s * d, [y0, moments], None, stages);
+                } else if B::LOCAL_STAGES {
                     bank.combine(s + 1..2 * s + 1, y0, moments, &coef[pred], props, ws);
                     stages.copy_from_slice(props);
                 } else {
@@ -1293,10 +1470,10 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             let (mut previous, mut previous_global) = (f64::INFINITY, f64::INFINITY);
             // The stage at a node c = 0, if any (see `eval_all`).
             let origin = kernel.nodes().iter().position(|&c| c == 0.0);
-            let fused = fused.as_deref();
-            if fused.is_some() {
+            let fused = fused.as_ref();
+            if let Some(f) = fused {
                 // e^{cᵢhA} y₀, once per step.
-                bank.combine(0..s, y0, &[], &[], props, ws);
+                gemv_cm(&f.props, s * d, [y0, &[]], None, props);
             }
             let (residual, global, converged) = loop {
                 // The last update in the global scale.
@@ -1305,8 +1482,8 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                 } else {
                     previous
                 };
-                if let Some(mats) = fused {
-                    B::fused_sweep(mats, props, g, new_stages, s, d);
+                if let Some(f) = fused {
+                    gemv_cm(&f.stage, s * d, [g, &[]], Some(props), new_stages);
                 } else {
                     kernel.legendre_moments(g, moments, d);
                     if B::LOCAL_STAGES {
@@ -1390,11 +1567,14 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                 }
                 eval_all(stages, g, scratch, unchanged)?;
                 g_evals += s - usize::from(unchanged.is_some());
+                if previous.is_finite() {
+                    theta_step = theta_step.max(residual / previous);
+                }
                 let converged = if PER_COMPONENT {
                     sweeps_converged_scaled(residual, previous, global, settings.tolerance)
                 } else {
                     sweeps_converged(residual, previous, settings.tolerance)
-                };
+                } || y1_converged(residual, previous, theta_floor, settings.tolerance);
                 if converged {
                     break (residual, global, true);
                 }
@@ -1424,9 +1604,15 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                 // c the rounding error of the previous y₁ (compensated summation). Rounding the
                 // f64 state the same way every period of an oscillation, and the f64 propagator,
                 // would otherwise make the energy drift linearly (≈ 1e−16 per step).
-                last.fill(0.0);
-                bank.combine(s..s + 1, last, moments, &coef[s * m..(s + 1) * m], y, ws);
-                bank.apply(s, 0, comp, ec, ws);
+                if let Some(f) = fused {
+                    let (e, kernels) = f.end.split_at(d * d);
+                    gemv_cm(kernels, d, [moments, &[]], None, y);
+                    gemv_cm(e, d, [comp, &[]], None, ec);
+                } else {
+                    last.fill(0.0);
+                    bank.combine(s..s + 1, last, moments, &coef[s * m..(s + 1) * m], y, ws);
+                    bank.apply(s, 0, comp, ec, ws);
+                }
                 for ((((yv, c), h), l), e) in y
                     .iter_mut()
                     .zip(comp.iter_mut())
@@ -1438,6 +1624,8 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                     *yv = sum;
                     *c = err;
                 }
+            } else if let Some(f) = fused {
+                gemv_cm(&f.end, d, [y0, moments], None, y);
             } else {
                 bank.combine(s..s + 1, y0, moments, &coef[s * m..(s + 1) * m], y, ws);
             }
@@ -1451,6 +1639,11 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             }
             last.copy_from_slice(y);
             *have_previous = true;
+            *theta = if theta_step > 0.0 {
+                theta_step
+            } else {
+                theta_floor
+            };
             Ok(StepReport {
                 sweeps,
                 residual,
@@ -1503,7 +1696,7 @@ fn kernel_coefficients(h: f64, taus: &[f64], r: usize) -> Vec<f64> {
 
 #[cfg(test)]
 mod tests {
-    use super::{all_finite, sweeps_converged, sweeps_converged_scaled};
+    use super::{all_finite, sweeps_converged, sweeps_converged_scaled, y1_converged};
 
     #[test]
     fn finiteness_of_every_entry() {
@@ -1548,6 +1741,26 @@ mod tests {
         // NaN is never convergence (the stepper reports divergence).
         assert!(!sweeps_converged(f64::NAN, 1e-3, TOL));
         assert!(!sweeps_converged(f64::NAN, inf, TOL));
+    }
+
+    #[test]
+    fn y1_stopping_rule() {
+        let inf = f64::INFINITY;
+        // Duffing ω = 20, r = 6, h = 1/16: θ ≈ 2.4e-6, e ≈ 3e-16, θe ≈ 7e-22.
+        assert!(y1_converged(1.3e-10, 5.5e-5, 0.0, TOL));
+        // ... unless the step before saw a slow ratio: θ = 0.3 gives e = 5.6e-11.
+        assert!(!y1_converged(1.3e-10, 5.5e-5, 0.3, TOL));
+        // θ = 0.01: e = 2e-17, θe = 2e-19; e = 1e-14 is not within the tolerance.
+        assert!(y1_converged(2e-15, 2e-13, 0.0, TOL));
+        assert!(!y1_converged(1e-12, 1e-10, 0.0, TOL));
+        // θ = 0.3: e = 8.6e-16 within the tolerance, θe = 2.6e-16 not within 1/16 of it.
+        assert!(!y1_converged(2e-15, 2e-15 / 0.3, 0.0, TOL));
+        // θ = 0.1: e = 5.6e-16, θe = 5.6e-17 ≤ 6.25e-17.
+        assert!(y1_converged(5e-15, 5e-14, 0.0, TOL));
+        // No contraction known (first sweep), not contracting, or NaN: never.
+        assert!(!y1_converged(1e-20, inf, 0.0, TOL));
+        assert!(!y1_converged(1e-16, 1e-16, 0.0, TOL));
+        assert!(!y1_converged(f64::NAN, 1e-3, 0.0, TOL));
     }
 
     #[test]
