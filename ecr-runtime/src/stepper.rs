@@ -231,7 +231,10 @@ pub enum Predictor {
     /// exact for the linear part and O(h^{r+1}) close to the stages, so fewer sweeps are needed
     /// (the converged step is the same up to round-off). Used when the step starts where the
     /// previous one ended (compared bit for bit) with the same h; otherwise as `Constant`.
-    /// Costs s more φ-bank entries and one `combine` over s nodes per step.
+    /// Costs s more φ-bank entries and one `combine` over s nodes per step. The default: it
+    /// saves about one sweep per step on Duffing (ω = 20, r = 2..8, h = 1/4..1/64) and three
+    /// to four on the NLS (N = 128, r = 3..5, h = 0.025..0.2), for the cost of about one
+    /// (`cargo run --release --example sweeps`).
     Extrapolate,
 }
 
@@ -321,14 +324,15 @@ pub struct SolverSettings {
 }
 
 impl Default for SolverSettings {
-    /// Tolerance 1e−15, at most 100 sweeps, error at the limit, stages started at y₀,
-    /// fixed-point sweeps, the global scale, compensated update.
+    /// Tolerance 1e−15, at most 100 sweeps, error at the limit, stages started from the
+    /// previous step extrapolated ([`Predictor::Extrapolate`]), fixed-point sweeps, the global
+    /// scale, compensated update.
     fn default() -> Self {
         SolverSettings {
             tolerance: 1e-15,
             max_sweeps: 100,
             on_limit: SweepLimit::Error,
-            predictor: Predictor::Constant,
+            predictor: Predictor::Extrapolate,
             solver: StageSolver::FixedPoint,
             scale: StageScale::Global,
             compensated: true,
