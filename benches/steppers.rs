@@ -8,18 +8,27 @@
 //! again paired: the same iterations interleaved in rounds, the fastest of each kept, printed
 //! as one line per problem (robust on a shared machine, where criterion's separate runs of a
 //! few seconds each can see different load).
+//!
+//! Then the speed issue's cases, each paired the same way: Duffing ω = 20, k = 0.07 (the
+//! benchmark's problem) with r = 6, h = 1/16 (global error ≈ 5e−12 at T = 1000), macro
+//! `Ec6<_, 2>` against the run-time `EcStepper` (dense operator, as `ecr run` builds it) and
+//! both against their own g-evaluation cost: the time of as many evaluations of the same g
+//! (`Duffing::nonlinear`) on the states of the run; and the FPU chain (m = 3, ω = 50) with
+//! TCrP r = 3, h = 0.01: macro `Tc3<_, 6>` against the run-time `TcStepper`.
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use ecr::ecr_method;
 use ecr::runtime::operator::{Dense, DenseStatic, PhiBank};
 use ecr::runtime::problems::{Duffing, Wind};
-use ecr::runtime::stepper::{EcStepper, SolverSettings, Stepper, gemv_cm};
+use ecr::runtime::stepper::{EcStepper, Kernel, SolverSettings, Stepper, gemv_cm};
 use ecr::runtime::system::Semilinear;
 use nalgebra::{DMatrix, SMatrix};
 use std::hint::black_box;
 use std::time::Instant;
 
 ecr_method!(r = 3);
+ecr_method!(r = 6);
+ecr_method!(r = 3, family = tc);
 
 const STEPS: usize = 100;
 const H: f64 = 0.01;
@@ -58,17 +67,15 @@ fn bench_problem<G: Fn(&[f64], &mut [f64]) + Copy>(
         g_evals += rep.g_evals;
         sweeps += rep.sweeps;
     }
-    // The operator applications of a step, from the macro stepper's own bank: once per step
-    // e^{cᵢhA} y₀ (s nodes), per sweep the fused stage matrices, at the end the combine at
-    // τ = 1, the double-double propagator and the propagated carried rounding error.
-    let s = 3;
+    // The linear algebra of a step, from the macro stepper's own maps: once per step e^{cᵢhA} y₀
+    // (s nodes) and the predictor, per sweep the stage matrices, at the end the moments, the
+    // kernels at τ = 1, the double-double propagator and the propagated carried rounding error.
     let bank = fixed.bank().clone();
-    let mats = fixed
-        .stage_matrices()
-        .expect("d = 2, s = r: the stepper fuses its sweeps")
-        .to_vec();
-    let coef = [H; 3];
-    let (mut props, mut stages, moments) = ([0.0; 6], [0.0; 6], [0.1; 6]);
+    let maps = fixed
+        .fused_maps()
+        .expect("d = 2, s = r: the stepper fuses its step")
+        .clone();
+    let (mut props, mut stages, mut moments) = ([0.0; 6], [0.0; 6], [0.1; 6]);
     let (mut gout, mut hi, mut lo) = ([0.0; 2], [0.0; 2], [0.0; 2]);
     let g_in = [0.3; 6];
 
@@ -82,23 +89,25 @@ fn bench_problem<G: Fn(&[f64], &mut [f64]) + Copy>(
             g(black_box(&y0), black_box(&mut gout));
         }
         for _ in 0..STEPS {
-            bank.combine(0..s, black_box(&y0), &[], &[], &mut props, &mut ());
+            gemv_cm(&maps.props, 6, [black_box(&y0), &[]], None, &mut props);
+            gemv_cm(&maps.pred, 6, [black_box(&y0), &moments], None, &mut stages);
         }
         for _ in 0..sweeps {
             // The stepper's own fused sweep, sizes constant (as the fixed-order stepper has them).
-            gemv_cm(&mats, 6, [black_box(&g_in), &[]], Some(&props), &mut stages);
+            gemv_cm(
+                &maps.stage,
+                6,
+                [black_box(&g_in), &[]],
+                Some(&props),
+                &mut stages,
+            );
         }
         for _ in 0..STEPS {
-            bank.combine(
-                s..s + 1,
-                black_box(&y0),
-                &moments,
-                &coef,
-                &mut gout,
-                &mut (),
-            );
-            bank.propagate_dd(s, black_box(&y0), &mut hi, &mut lo, &mut ());
-            bank.apply(s, 0, black_box(&lo), &mut hi, &mut ());
+            Ec3Kernel.legendre_moments(black_box(&g_in), &mut moments, 2);
+            let (e, kernels) = maps.end.split_at(4);
+            gemv_cm(kernels, 2, [black_box(&moments), &[]], None, &mut gout);
+            bank.propagate_dd(3, black_box(&y0), &mut hi, &mut lo, &mut ());
+            gemv_cm(e, 2, [black_box(&lo), &[]], None, &mut hi);
         }
         (stages, gout, hi)
     };
@@ -164,6 +173,131 @@ fn time_once<R>(f: &mut impl FnMut() -> R) -> f64 {
     t.elapsed().as_secs_f64() * 1e6
 }
 
+/// Steps of the issue cases per iteration.
+const CASE_STEPS: usize = 1000;
+
+/// Duffing ω = 20, r = 6, h = 1/16 and FPU TCrP r = 3: macro vs run-time vs g-evaluation cost.
+fn issue_cases(c: &mut Criterion) {
+    use ecr::runtime::problems::Fpu;
+    use ecr::runtime::second_order::TcStepper;
+    let d = Duffing::new(20.0, 0.07).unwrap();
+    let h = 1.0 / 16.0;
+    let settings = SolverSettings::default();
+    let sa: SMatrix<f64, 2, 2> = SMatrix::from_iterator(d.linear_matrix().iter().copied());
+    let p = d.clone();
+    let g = move |y: &[f64], o: &mut [f64]| p.nonlinear(y, o);
+    let mut fixed: Ec6<_, 2> = Stepper::from_kernel(
+        Ec6Kernel,
+        Semilinear::new(DenseStatic::new(sa).unwrap(), g.clone()),
+        h,
+        settings,
+    )
+    .unwrap();
+    let mut rt = EcStepper::with_nodes(d.system().unwrap(), 6, 6, h, settings).unwrap();
+    // The states of one iteration (for the g cost) and its g-evaluations and sweeps.
+    let y0 = d.initial_value();
+    let (mut states, mut g_evals, mut sweeps) = (Vec::new(), 0, 0);
+    let mut y = [y0[0], y0[1]];
+    for _ in 0..CASE_STEPS {
+        let rep = fixed.step(&mut y).unwrap();
+        g_evals += rep.g_evals;
+        sweeps += rep.sweeps;
+        states.push(y);
+    }
+    let start = [y0[0], y0[1]];
+    let mut run_macro = move || run_n(start, CASE_STEPS, |y| fixed.step(y).map(drop));
+    let mut run_rt = move || run_n(start, CASE_STEPS, |y| rt.step(y).map(drop));
+    let per_state = g_evals.div_ceil(states.len());
+    let mut run_g = move || {
+        let mut o = [0.0; 2];
+        let mut left = g_evals;
+        for y in states.iter().cycle() {
+            for _ in 0..per_state.min(left) {
+                g(black_box(y), black_box(&mut o));
+            }
+            left = left.saturating_sub(per_state);
+            if left == 0 {
+                break;
+            }
+        }
+        o
+    };
+    let mut group = c.benchmark_group("duffing_w20_r6");
+    group.bench_function("macro Ec6<_, 2>", |b| b.iter(&mut run_macro));
+    group.bench_function("run-time EcStepper r=6 (Dense)", |b| b.iter(&mut run_rt));
+    group.bench_function("g-evaluation cost", |b| b.iter(&mut run_g));
+    group.finish();
+    let mut best = [f64::INFINITY; 3];
+    for _ in 0..PAIRED_ROUNDS / 10 {
+        best[0] = best[0].min(time_once(&mut run_macro));
+        best[1] = best[1].min(time_once(&mut run_rt));
+        best[2] = best[2].min(time_once(&mut run_g));
+    }
+    let [mac, rt, gc] = best;
+    println!(
+        "duffing_w20_r6 paired (fastest of {} rounds, per {CASE_STEPS} steps, {:.2} sweeps and \
+         {:.1} g-evaluations per step): macro {mac:.1} µs, run-time {rt:.1} µs, g-evaluations \
+         {gc:.1} µs; macro / g cost = {:.2}, run-time / g cost = {:.2}, run-time / macro = {:.2}",
+        PAIRED_ROUNDS / 10,
+        sweeps as f64 / CASE_STEPS as f64,
+        g_evals as f64 / CASE_STEPS as f64,
+        mac / gc,
+        rt / gc,
+        rt / mac
+    );
+
+    let fpu = Fpu::default();
+    let (q0, p0) = fpu.initial_value();
+    let mut fixed: Tc3<_, 6> =
+        TcStepper::from_kernel(Tc3Kernel, fpu.system().unwrap(), H, settings).unwrap();
+    let mut rt = TcStepper::with_nodes(fpu.system().unwrap(), 3, 3, H, settings).unwrap();
+    let (qa, pa) = (q0.clone(), p0.clone());
+    let mut run_macro = move || {
+        let (mut q, mut p) = (qa.clone(), pa.clone());
+        for _ in 0..CASE_STEPS {
+            fixed.step(black_box(&mut q), black_box(&mut p)).unwrap();
+        }
+        (q, p)
+    };
+    let mut run_rt = move || {
+        let (mut q, mut p) = (q0.clone(), p0.clone());
+        for _ in 0..CASE_STEPS {
+            rt.step(black_box(&mut q), black_box(&mut p)).unwrap();
+        }
+        (q, p)
+    };
+    let mut group = c.benchmark_group("fpu_tc3");
+    group.bench_function("macro Tc3<_, 6>", |b| b.iter(&mut run_macro));
+    group.bench_function("run-time TcStepper r=3", |b| b.iter(&mut run_rt));
+    group.finish();
+    let mut best = [f64::INFINITY; 2];
+    for _ in 0..PAIRED_ROUNDS / 10 {
+        best[0] = best[0].min(time_once(&mut run_macro));
+        best[1] = best[1].min(time_once(&mut run_rt));
+    }
+    println!(
+        "fpu_tc3 paired (fastest of {} rounds, per {CASE_STEPS} steps): macro {:.1} µs, run-time \
+         {:.1} µs; run-time / macro = {:.2}",
+        PAIRED_ROUNDS / 10,
+        best[0],
+        best[1],
+        best[1] / best[0]
+    );
+}
+
+/// `n` steps of `step` from y0.
+fn run_n(
+    y0: [f64; 2],
+    n: usize,
+    mut step: impl FnMut(&mut [f64]) -> ecr::runtime::Result<()>,
+) -> [f64; 2] {
+    let mut y = y0;
+    for _ in 0..n {
+        step(black_box(&mut y)).unwrap();
+    }
+    y
+}
+
 fn steppers(c: &mut Criterion) {
     // g written out (k = 0.07; wind: (x1 x2, (x1² − x2²)/2)), so that the benchmark times the
     // steppers, not the construction of problem structs; passed as the functions themselves
@@ -195,6 +329,6 @@ fn steppers(c: &mut Criterion) {
 criterion_group! {
     name = benches;
     config = Criterion::default().without_plots();
-    targets = steppers
+    targets = steppers, issue_cases
 }
 criterion_main!(benches);
