@@ -58,6 +58,7 @@ pub use simple::{Diagonal, DiagonalBank, Scalar, ScalarBank, Zero, ZeroBank};
 pub use skew::{SkewGenerator, SkewPair, SkewPairBank, SkewPairWorkspace, SpectralBasis};
 
 use std::ops::Range;
+use std::sync::Arc;
 
 use crate::{Error, Result};
 
@@ -101,7 +102,7 @@ pub trait LinearOperator {
 
 /// The functions a bank holds at each node: φ₀..φ_p, or `e^x` and the Legendre kernels.
 pub(crate) struct NodeFunctions {
-    legendre: Option<(crate::phi::LegendreKernels, Vec<Vec<f64>>)>,
+    legendre: Option<(Arc<crate::phi::LegendreKernels>, Vec<Vec<f64>>)>,
     /// The nodes (Legendre banks only).
     taus: Vec<f64>,
 }
@@ -137,12 +138,12 @@ impl NodeFunctions {
     pub(crate) fn legendre_map(&self, i: usize) -> Option<(&crate::phi::LegendreKernels, &[f64])> {
         self.legendre
             .as_ref()
-            .map(|(k, maps)| (k, maps[i].as_slice()))
+            .map(|(k, maps)| (&**k, maps[i].as_slice()))
     }
 
     /// `e^x`, `Ψ_0(τ_i, ·) … Ψ_{n−1}(τ_i, ·)` for the nodes `taus`.
     pub(crate) fn legendre(taus: &[f64], n: usize) -> Self {
-        let k = crate::phi::LegendreKernels::new(n);
+        let k = crate::phi::LegendreKernels::shared(n);
         let maps = taus.iter().map(|&t| k.node_map(t)).collect();
         NodeFunctions {
             legendre: Some((k, maps)),
