@@ -11,7 +11,7 @@
 //! (`cargo bench --bench hot_paths -- setup`): the whole ECrP stepper construction for the NLS
 //! with N = 128 at r = s = 3..6 (its Legendre-kernel bank at the Gauss points and τ = 1, h =
 //! 0.01), and the kernel bank alone (r = 3) of a random 1D circulant with N = 2¹⁶ and of the 2D
-//! NLS on 512 × 512.
+//! NLS on 512 × 512; and, to compare with, 500 steps of the NLS run (T = 10, r = 5, h = 0.02).
 
 use criterion::{BatchSize, BenchmarkId, Criterion, criterion_group, criterion_main};
 use ecr::runtime::operator::{
@@ -130,6 +130,25 @@ fn setup(c: &mut Criterion) {
             )
         });
     }
+    // What the set-up is compared with: the NLS run to T = 10 at r = s = 5, h = 0.02 (500
+    // steps from the paper's initial value), construction excluded.
+    let y0 = Nls::new(128).unwrap().initial_value();
+    g.bench_function("nls128_ecrp_r5_h0.02_500_steps", |b| {
+        b.iter_batched(
+            || {
+                let settings = SolverSettings::default();
+                let stepper = EcStepper::with_nodes(nls.clone(), 5, 5, 0.02, settings).unwrap();
+                (stepper, y0.clone())
+            },
+            |(mut stepper, mut y)| {
+                for _ in 0..500 {
+                    stepper.step(&mut y).unwrap();
+                }
+                y
+            },
+            BatchSize::PerIteration,
+        )
+    });
     g.sample_size(10);
     let circulant = Circulant::new(Lcg(3).vec(1 << 16)).unwrap();
     g.bench_function(BenchmarkId::new("circulant_kernel_bank_r3", 1 << 16), |b| {

@@ -115,14 +115,14 @@ fn reduce(x: f64, k: f64, c: &[f64; 3]) -> Dd {
 pub(crate) fn exp_dd(x: f64) -> Dd {
     if x == 0.0 {
         // What the reduction and the series give for ±0 (tested), without running them: the
-        // argument of every skew-pair mode and of every real mode at τ = 0.
+        // real part of every skew-pair mode's exponent, and every zero eigenvalue.
         return Dd::new(1.0);
     }
-    exp_dd_nonzero(x)
+    exp_dd_series(x)
 }
 
 /// [`exp_dd`] by the reduction and the series (also correct, and the same, for ±0).
-fn exp_dd_nonzero(x: f64) -> Dd {
+fn exp_dd_series(x: f64) -> Dd {
     if x.is_nan() {
         return Dd::new(f64::NAN);
     }
@@ -280,7 +280,7 @@ mod tests {
         assert_eq!(exp_dd(0.0), Dd::new(1.0));
         // The shortcut for ±0 returns, bit for bit, what the series gives.
         for z in [0.0, -0.0] {
-            let (a, b) = (exp_dd_nonzero(z), Dd::new(1.0));
+            let (a, b) = (exp_dd_series(z), Dd::new(1.0));
             assert_eq!(
                 (a.hi.to_bits(), a.lo.to_bits()),
                 (b.hi.to_bits(), b.lo.to_bits())
