@@ -6,11 +6,20 @@
 //! Banks are built as ECrP builds them: r = 3 (φ₀..φ₄), nodes the 3 Gauss points and τ = 1.
 //! Dense matrices are non-normal (random entries plus a skew part of size 10 and a diagonal
 //! shift), so the dense bank runs scaling-and-squaring rather than an eigendecomposition.
+//!
+//! The group `setup` times what a run pays before its first step for the spectral problems
+//! (`cargo bench --bench hot_paths -- setup`): the whole ECrP stepper construction for the NLS
+//! with N = 128 at r = s = 3..6 (its Legendre-kernel bank at the Gauss points and τ = 1, h =
+//! 0.01), and the kernel bank alone (r = 3) of a random 1D circulant with N = 2¹⁶ and of the 2D
+//! NLS on 512 × 512; and, to compare with, 500 steps of the NLS run (T = 10, r = 5, h = 0.02).
 
-use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
+use criterion::{BatchSize, BenchmarkId, Criterion, criterion_group, criterion_main};
 use ecr::runtime::operator::{
     Circulant, Dense, DenseStatic, Diagonal, LinearOperator, PhiBank, Scalar, SkewPair, Symmetric,
 };
+use ecr::runtime::problems::{Nls, Nls2d};
+use ecr::runtime::stepper::{EcStepper, SolverSettings};
+use ecr::runtime::system::System;
 use nalgebra::{DMatrix, SMatrix};
 use std::hint::black_box;
 
@@ -107,10 +116,55 @@ fn phi_banks(c: &mut Criterion) {
     }
 }
 
+/// Set-up before the first step: ECrP stepper construction for the NLS (N = 128), kernel banks
+/// of a large 1D circulant and of the 2D NLS.
+fn setup(c: &mut Criterion) {
+    let mut g = c.benchmark_group("setup");
+    let nls = Nls::new(128).unwrap().system().unwrap();
+    for r in 3..=6 {
+        g.bench_with_input(BenchmarkId::new("nls128_ecrp_stepper_r", r), &r, |b, &r| {
+            b.iter_batched(
+                || nls.clone(),
+                |sys| EcStepper::with_nodes(sys, r, r, H, SolverSettings::default()).unwrap(),
+                BatchSize::SmallInput,
+            )
+        });
+    }
+    // What the set-up is compared with: the NLS run to T = 10 at r = s = 5, h = 0.02 (500
+    // steps from the paper's initial value), construction excluded.
+    let y0 = Nls::new(128).unwrap().initial_value();
+    g.bench_function("nls128_ecrp_r5_h0.02_500_steps", |b| {
+        b.iter_batched(
+            || {
+                let settings = SolverSettings::default();
+                let stepper = EcStepper::with_nodes(nls.clone(), 5, 5, 0.02, settings).unwrap();
+                (stepper, y0.clone())
+            },
+            |(mut stepper, mut y)| {
+                for _ in 0..500 {
+                    stepper.step(&mut y).unwrap();
+                }
+                y
+            },
+            BatchSize::PerIteration,
+        )
+    });
+    g.sample_size(10);
+    let circulant = Circulant::new(Lcg(3).vec(1 << 16)).unwrap();
+    g.bench_function(BenchmarkId::new("circulant_kernel_bank_r3", 1 << 16), |b| {
+        b.iter(|| circulant.kernel_bank(black_box(H), &TAUS, R).unwrap())
+    });
+    let nls2d = Nls2d::new(512).unwrap().system().unwrap();
+    g.bench_function(BenchmarkId::new("nls2d_kernel_bank_r3", 512), |b| {
+        b.iter(|| nls2d.linear().kernel_bank(black_box(H), &TAUS, R).unwrap())
+    });
+    g.finish();
+}
+
 criterion_group! {
     name = benches;
     // No plots: criterion's plotting backend needs system fonts, which a fresh machine may lack.
     config = Criterion::default().sample_size(20).without_plots();
-    targets = phi_banks
+    targets = phi_banks, setup
 }
 criterion_main!(benches);

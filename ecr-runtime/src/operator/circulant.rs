@@ -9,8 +9,8 @@ use rustfft::{Fft, FftPlanner};
 
 use super::skew::{SkewGenerator, SpectralBasis};
 use super::{
-    LinearOperator, NodeFunctions, PhiBank, apply_shape, check_bank_args, check_bank_values,
-    combine_shape,
+    Distinct, LinearOperator, NodeFunctions, PhiBank, apply_shape, check_bank_args,
+    check_bank_values, combine_shape,
 };
 use crate::phi::{cexp_dd, two_sum};
 use crate::{Error, Result};
@@ -235,33 +235,10 @@ impl<B: SpectralBasis> SpectralBank<B> {
         f: NodeFunctions,
     ) -> Result<Self> {
         check_bank_args(h, taus)?;
-        let n = lambda.len();
-        let mut phis = vec![Complex64::new(0.0, 0.0); taus.len() * (p + 1) * n];
-        let mut increments = vec![None; taus.len()];
-        let mut buf = vec![Complex64::new(0.0, 0.0); p + 1];
-        for (i, tau) in taus.iter().enumerate() {
-            let th = tau * h;
-            let mut inc = f.carries_dd(i).then(|| vec![Complex64::new(0.0, 0.0); n]);
-            for (mode, l) in lambda.iter().enumerate() {
-                let z = Complex64::new(th * l.re, th * l.im);
-                f.complex(i, z, &mut buf);
-                if let Some(inc) = &mut inc {
-                    (inc[mode], buf[0]) = exp_increment(z);
-                }
-                for (k, v) in buf.iter().enumerate() {
-                    phis[(i * (p + 1) + k) * n + mode] = *v;
-                }
-            }
-            increments[i] = inc;
-        }
-        check_bank_values(phis.iter().flat_map(|v| [v.re, v.im]))?;
-        check_bank_values(
-            increments
-                .iter()
-                .flatten()
-                .flatten()
-                .flat_map(|v| [v.re, v.im]),
-        )?;
+        let spectrum = Distinct::complex(lambda);
+        let (phis, increments) = spectral_entries(&spectrum, h, taus, p, &f, |th, l| {
+            Complex64::new(th * l.re, th * l.im)
+        })?;
         Ok(SpectralBank {
             len: taus.len(),
             p,
@@ -270,6 +247,47 @@ impl<B: SpectralBasis> SpectralBank<B> {
             basis: basis.clone(),
         })
     }
+}
+
+/// The entries of a spectral bank ([`SpectralBank`], [`SkewPairBank`](super::SkewPairBank)):
+/// `phis[(i (p+1) + k) n + mode]` = slot k of the functions `f` at node i and `z = arg(τ_i h,
+/// μ_mode)` for the spectrum μ, and at the nodes that carry their propagator beyond f64 the
+/// increments `e^z − 1` rounded from double-double (slot 0 then holds `e^z` from the same
+/// evaluation). The functions are evaluated once per distinct value of μ ([`Distinct`]).
+///
+/// # Errors
+/// [`Error::Numerical`] if a value overflows.
+#[allow(clippy::type_complexity)]
+pub(super) fn spectral_entries<T: Copy>(
+    spectrum: &Distinct<T>,
+    h: f64,
+    taus: &[f64],
+    p: usize,
+    f: &NodeFunctions,
+    arg: impl Fn(f64, T) -> Complex64,
+) -> Result<(Vec<Complex64>, Vec<Option<Vec<Complex64>>>)> {
+    let zero = Complex64::new(0.0, 0.0);
+    let carries = |i| f.carries_dd(i);
+    let (phis, increments) = spectrum.bank_entries(taus.len(), p, zero, carries, |i, v, row| {
+        let z = arg(taus[i] * h, v);
+        f.complex(i, z, row);
+        if f.carries_dd(i) {
+            let inc;
+            (inc, row[0]) = exp_increment(z);
+            inc
+        } else {
+            zero
+        }
+    });
+    check_bank_values(phis.iter().flat_map(|v| [v.re, v.im]))?;
+    check_bank_values(
+        increments
+            .iter()
+            .flatten()
+            .flatten()
+            .flat_map(|v| [v.re, v.im]),
+    )?;
+    Ok((phis, increments))
 }
 
 /// `y = V diag(λ) V⁻¹ x` with the buffers behind `scratch` (the operators' `apply`, which has
@@ -451,5 +469,107 @@ impl SkewGenerator for Circulant {
             self.lambda.iter().map(|l| l.re).collect(),
             self.basis.clone(),
         ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The entries evaluated per mode, without merging equal values (the reference for
+    /// [`spectral_entries`]).
+    #[allow(clippy::type_complexity)]
+    fn per_mode<T: Copy>(
+        spectrum: &[T],
+        h: f64,
+        taus: &[f64],
+        p: usize,
+        f: &NodeFunctions,
+        arg: impl Fn(f64, T) -> Complex64,
+    ) -> (Vec<Complex64>, Vec<Option<Vec<Complex64>>>) {
+        let n = spectrum.len();
+        let zero = Complex64::new(0.0, 0.0);
+        let mut phis = vec![zero; taus.len() * (p + 1) * n];
+        let mut increments = vec![None; taus.len()];
+        let mut buf = vec![zero; p + 1];
+        for (i, tau) in taus.iter().enumerate() {
+            let th = tau * h;
+            let mut inc = f.carries_dd(i).then(|| vec![zero; n]);
+            for (mode, l) in spectrum.iter().enumerate() {
+                let z = arg(th, *l);
+                f.complex(i, z, &mut buf);
+                if let Some(inc) = &mut inc {
+                    (inc[mode], buf[0]) = exp_increment(z);
+                }
+                for (k, v) in buf.iter().enumerate() {
+                    phis[(i * (p + 1) + k) * n + mode] = *v;
+                }
+            }
+            increments[i] = inc;
+        }
+        (phis, increments)
+    }
+
+    fn bits(v: &[Complex64]) -> Vec<(u64, u64)> {
+        v.iter().map(|z| (z.re.to_bits(), z.im.to_bits())).collect()
+    }
+
+    fn assert_same(
+        a: &(Vec<Complex64>, Vec<Option<Vec<Complex64>>>),
+        b: &(Vec<Complex64>, Vec<Option<Vec<Complex64>>>),
+        what: &str,
+    ) {
+        assert_eq!(bits(&a.0), bits(&b.0), "{what}: entries");
+        let inc = |x: &Vec<Option<Vec<Complex64>>>| {
+            x.iter().map(|v| v.as_deref().map(bits)).collect::<Vec<_>>()
+        };
+        assert_eq!(inc(&a.1), inc(&b.1), "{what}: increments");
+    }
+
+    /// Merging equal eigenvalues changes no bit: the entries of a spectrum with repeated values
+    /// (0, a mirrored pair λ_k = λ_{N−k}, −0, a pair ±λ) equal those evaluated mode by mode.
+    #[test]
+    fn entries_per_distinct_value_equal_entries_per_mode() {
+        let h = 0.37;
+        let taus = [0.0, 0.2, 0.5, 1.0, 1.4];
+        // A symmetric circulant's layout: 0, then λ_k = λ_{N−k}; then −0 and ±λ.
+        let real = [
+            0.0, -2.0, -4.0, -9.5, -4.0, -2.0, -0.0, 3.25, -3.25, 1e-9, 0.0, -2.0,
+        ];
+        let complex: Vec<Complex64> = [
+            (0.0, 0.0),
+            (-2.0, 1.5),
+            (-2.0, -1.5),
+            (-7.0, 0.0),
+            (-2.0, -1.5),
+            (-2.0, 1.5),
+            (0.0, 0.0),
+            (-0.0, 0.0),
+            (0.25, 40.0),
+        ]
+        .iter()
+        .map(|&(re, im)| Complex64::new(re, im))
+        .collect();
+        for p in [0, 1, 3, 6] {
+            for (name, f) in [
+                ("phi", NodeFunctions::phi()),
+                ("kernels", NodeFunctions::legendre(&taus, p)),
+            ] {
+                let skew = |th: f64, l: f64| Complex64::new(0.0, th * l);
+                let merged = spectral_entries(&Distinct::real(&real), h, &taus, p, &f, skew);
+                let reference = per_mode(&real, h, &taus, p, &f, skew);
+                assert_same(&merged.unwrap(), &reference, &format!("real {name} p={p}"));
+
+                let circ = |th: f64, l: Complex64| Complex64::new(th * l.re, th * l.im);
+                let distinct = Distinct::complex(&complex);
+                let merged = spectral_entries(&distinct, h, &taus, p, &f, circ);
+                let reference = per_mode(&complex, h, &taus, p, &f, circ);
+                assert_same(
+                    &merged.unwrap(),
+                    &reference,
+                    &format!("complex {name} p={p}"),
+                );
+            }
+        }
     }
 }

@@ -5,8 +5,8 @@ use std::ops::Range;
 use nalgebra::DVector;
 
 use super::{
-    LinearOperator, NodeFunctions, PhiBank, apply_shape, check_bank_args, check_bank_scale,
-    check_bank_values, combine_shape,
+    Distinct, LinearOperator, NodeFunctions, PhiBank, apply_shape, check_bank_args,
+    check_bank_scale, check_bank_values, combine_shape,
 };
 use crate::phi::{exp_dd, two_prod, two_sum};
 use crate::{Error, Result};
@@ -383,25 +383,20 @@ impl Diagonal {
             self.diag.iter().fold(0.0_f64, |m, x| m.max(x.abs())),
         )?;
         let d = self.diag.len();
-        let mut phis = vec![0.0; taus.len() * (p + 1) * d];
-        let mut lo = vec![None; taus.len()];
-        let mut buf = vec![0.0; p + 1];
-        for (i, tau) in taus.iter().enumerate() {
-            let th = tau * h;
-            let mut low = f.carries_dd(i).then(|| vec![0.0; d]);
-            for (t, dv) in self.diag.iter().enumerate() {
-                f.real(i, th * dv, &mut buf);
-                if let Some(l) = &mut low {
-                    let e = exp_dd(th * dv);
-                    buf[0] = e.hi;
-                    l[t] = e.lo;
-                }
-                for (k, v) in buf.iter().enumerate() {
-                    phis[(i * (p + 1) + k) * d + t] = *v;
-                }
+        // Evaluated once per distinct entry (a diagonal often repeats its entries).
+        let entries = Distinct::real(&self.diag);
+        let carries = |i| f.carries_dd(i);
+        let (phis, lo) = entries.bank_entries(taus.len(), p, 0.0, carries, |i, dv, row| {
+            let x = taus[i] * h * dv;
+            f.real(i, x, row);
+            if f.carries_dd(i) {
+                let e = exp_dd(x);
+                row[0] = e.hi;
+                e.lo
+            } else {
+                0.0
             }
-            lo[i] = low;
-        }
+        });
         check_bank_values(phis.iter().copied())?;
         Ok(DiagonalBank {
             dim: d,
@@ -495,6 +490,52 @@ impl PhiBank for DiagonalBank {
         let f = &self.phis[(i * (self.p + 1) + k) * d..(i * (self.p + 1) + k + 1) * d];
         for ((o, xv), fv) in out.iter_mut().zip(x).zip(f) {
             *o = fv * xv;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A diagonal with repeated entries (0, −0, a repeated pair, ±d) gives, bit for bit, the bank
+    /// evaluated entry by entry.
+    #[test]
+    fn diagonal_bank_per_distinct_entry_equals_bank_per_entry() {
+        let diag = vec![
+            0.0, -2.0, -4.0, -2.0, 0.0, -0.0, 3.25, -3.25, 1e-9, -2.0, -300.0,
+        ];
+        let op = Diagonal::new(diag.clone()).unwrap();
+        let (h, taus) = (0.3, [0.0, 0.2, 0.5, 1.0, 1.4]);
+        for p in [0, 1, 4] {
+            for kernels in [false, true] {
+                let (bank, f) = if kernels {
+                    (
+                        op.kernel_bank(h, &taus, p),
+                        NodeFunctions::legendre(&taus, p),
+                    )
+                } else {
+                    (op.phi_bank(h, &taus, p), NodeFunctions::phi())
+                };
+                let bank = bank.unwrap();
+                let mut buf = vec![0.0; p + 1];
+                for (i, tau) in taus.iter().enumerate() {
+                    for (t, dv) in diag.iter().enumerate() {
+                        f.real(i, tau * h * dv, &mut buf);
+                        let lo = f.carries_dd(i).then(|| {
+                            let e = exp_dd(tau * h * dv);
+                            buf[0] = e.hi;
+                            e.lo
+                        });
+                        for (k, v) in buf.iter().enumerate() {
+                            let got = bank.phis[(i * (p + 1) + k) * diag.len() + t];
+                            assert_eq!(got.to_bits(), v.to_bits(), "p={p} i={i} t={t} k={k}");
+                        }
+                        let got = bank.lo[i].as_ref().map(|l| l[t].to_bits());
+                        assert_eq!(got, lo.map(f64::to_bits), "p={p} i={i} t={t}: low part");
+                    }
+                }
+            }
         }
     }
 }

@@ -4,10 +4,9 @@ use std::ops::Range;
 
 use num_complex::Complex64;
 
-use super::circulant::{add_increment, exp_increment, spectral_block};
+use super::circulant::{add_increment, spectral_block, spectral_entries};
 use super::{
-    LinearOperator, NodeFunctions, PhiBank, apply_shape, check_bank_args, check_bank_values,
-    combine_shape,
+    Distinct, LinearOperator, NodeFunctions, PhiBank, apply_shape, check_bank_args, combine_shape,
 };
 use crate::Result;
 
@@ -150,32 +149,10 @@ impl<C: SkewGenerator> SkewPair<C> {
     ) -> Result<SkewPairBank<C::Basis>> {
         check_bank_args(h, taus)?;
         let n = self.lambda.len();
-        let mut phis = vec![Complex64::new(0.0, 0.0); taus.len() * (p + 1) * n];
-        let mut increments = vec![None; taus.len()];
-        let mut buf = vec![Complex64::new(0.0, 0.0); p + 1];
-        for (i, tau) in taus.iter().enumerate() {
-            let th = tau * h;
-            let mut inc = f.carries_dd(i).then(|| vec![Complex64::new(0.0, 0.0); n]);
-            for (mode, l) in self.lambda.iter().enumerate() {
-                let z = Complex64::new(0.0, th * l);
-                f.complex(i, z, &mut buf);
-                if let Some(inc) = &mut inc {
-                    (inc[mode], buf[0]) = exp_increment(z);
-                }
-                for (k, v) in buf.iter().enumerate() {
-                    phis[(i * (p + 1) + k) * n + mode] = *v;
-                }
-            }
-            increments[i] = inc;
-        }
-        check_bank_values(phis.iter().flat_map(|v| [v.re, v.im]))?;
-        check_bank_values(
-            increments
-                .iter()
-                .flatten()
-                .flatten()
-                .flat_map(|v| [v.re, v.im]),
-        )?;
+        let spectrum = Distinct::real(&self.lambda);
+        let (phis, increments) = spectral_entries(&spectrum, h, taus, p, &f, |th, l| {
+            Complex64::new(0.0, th * l)
+        })?;
         Ok(SkewPairBank {
             n,
             len: taus.len(),
@@ -285,6 +262,47 @@ impl<B: SpectralBasis> PhiBank for SkewPairBank<B> {
         for ((a, b), w) in op.iter_mut().zip(oq.iter_mut()).zip(&ws.buf) {
             *a = w.re;
             *b = w.im;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::operator::Circulant;
+    use crate::operator::circulant::exp_increment;
+
+    /// The skew pair of the second difference on 4 points (spectrum 0, −2, −4, −2 exactly: a
+    /// zero and a mirrored pair) gives, bit for bit, the bank evaluated mode by mode.
+    #[test]
+    fn skew_bank_per_distinct_eigenvalue_equals_bank_per_mode() {
+        let op = SkewPair::new(Circulant::new(vec![-2.0, 1.0, 0.0, 1.0]).unwrap()).unwrap();
+        assert_eq!(op.eigenvalues(), &[0.0, -2.0, -4.0, -2.0]);
+        let (h, taus) = (0.7, [0.1, 0.5, 1.0]);
+        for p in [1, 5] {
+            let bank = op.kernel_bank(h, &taus, p).unwrap();
+            let f = NodeFunctions::legendre(&taus, p);
+            let mut buf = vec![Complex64::new(0.0, 0.0); p + 1];
+            for (i, tau) in taus.iter().enumerate() {
+                for (mode, l) in op.eigenvalues().iter().enumerate() {
+                    let z = Complex64::new(0.0, tau * h * l);
+                    f.complex(i, z, &mut buf);
+                    let inc = f.carries_dd(i).then(|| {
+                        let inc;
+                        (inc, buf[0]) = exp_increment(z);
+                        (inc.re.to_bits(), inc.im.to_bits())
+                    });
+                    for (k, v) in buf.iter().enumerate() {
+                        let got = bank.phis[(i * (p + 1) + k) * 4 + mode];
+                        let bits = |z: Complex64| (z.re.to_bits(), z.im.to_bits());
+                        assert_eq!(bits(got), bits(*v), "p={p} i={i} mode={mode} k={k}");
+                    }
+                    let got = bank.increments[i]
+                        .as_ref()
+                        .map(|v| (v[mode].re.to_bits(), v[mode].im.to_bits()));
+                    assert_eq!(got, inc, "p={p} i={i} mode={mode}: increment");
+                }
+            }
         }
     }
 }

@@ -38,6 +38,9 @@
 //! (relative accuracy is neither available nor needed: a stage needs `Ψ_j L_j` to `ε h |g|`).
 //! Matrices ([`LegendreKernels::psi_dense`]): the same Taylor series and doubling on matrices.
 
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex, OnceLock};
+
 use nalgebra::DMatrix;
 use num_complex::Complex64;
 
@@ -48,6 +51,8 @@ use crate::{Error, Result};
 const TAYLOR_RADIUS: f64 = 0.5;
 /// First neglected Taylor term relative to the sum: `2⁻⁵⁸ ≈ u/32`.
 const TAYLOR_TOL: f64 = 3.469446951953614e-18;
+/// At most this many Taylor terms after the first (far more than `|x| ≤ 1/2` needs).
+const TAYLOR_TERMS: usize = 80;
 /// Matrix Taylor series: powers `X^0..=X^MATRIX_TERMS` (`‖X‖₁ ≤ 1/2`; the terms are bounded by
 /// `2^{−k}/(k+1)!`, below `1e−18` beyond k = 15).
 const MATRIX_TERMS: usize = 16;
@@ -105,17 +110,24 @@ pub struct LegendreKernels {
     n: usize,
     /// `m!/(2m+1)!`: the first Taylor coefficient of `(−1)^m ψ_m`.
     first: Vec<f64>,
+    /// `ratio[m·TAYLOR_TERMS + j]`: the ratio `(k+1)/((k+1−m)(k+m+2))` of the Taylor
+    /// coefficients `k + 1` and `k` of ψ_m, `k = m + j`.
+    ratio: Vec<f64>,
     /// `L = K(1/2)`, row-major n × n (lower triangular).
     half: Vec<f64>,
     /// `D_mq = (m+q)!/(q!(m−q)!)`, row-major n × n (q ≤ m).
     deriv: Vec<f64>,
     /// `|x|` from which the finite integration-by-parts sum is used.
     big: f64,
+    /// The n-point Gauss–Legendre rule on [0, 1] of [`node_map`](Self::node_map): nodes and
+    /// weights, computed once for all nodes τ.
+    gauss: (Vec<f64>, Vec<f64>),
 }
 
 impl LegendreKernels {
-    /// The kernels `ψ_0 … ψ_{n−1}` (ECrP with r moments needs n = r). Cost O(n³), no caching
-    /// needed.
+    /// The kernels `ψ_0 … ψ_{n−1}` (ECrP with r moments needs n = r). Cost O(n³) plus the
+    /// Newton iterations of an n-point Gauss rule, tens of microseconds for n ≤ 12; the banks
+    /// build one per n and process and share it.
     pub fn new(n: usize) -> Self {
         let mut first = Vec::with_capacity(n);
         let mut a = 1.0;
@@ -123,6 +135,12 @@ impl LegendreKernels {
             first.push(a);
             a *= (m + 1) as f64 / ((2 * m + 2) * (2 * m + 3)) as f64;
         }
+        let ratio = (0..n)
+            .flat_map(|m| {
+                (m..m + TAYLOR_TERMS)
+                    .map(move |k| (k + 1) as f64 / ((k + 1 - m) * (k + m + 2)) as f64)
+            })
+            .collect();
         let mut deriv = vec![0.0; n * n];
         for m in 0..n {
             // D_m0 = 1, D_{m,q+1} = D_mq (m+q+1)(m−q)/(q+1).
@@ -135,12 +153,28 @@ impl LegendreKernels {
         let mut k = LegendreKernels {
             n,
             first,
+            ratio,
             half: Vec::new(),
             deriv,
             big: (4 * n * n).max(8) as f64,
+            gauss: gauss_legendre(n),
         };
         k.half = k.node_map(0.5);
         k
+    }
+
+    /// [`new`](Self::new)`(n)`, built once per process and shared: every bank with n kernels
+    /// (each operator, step size and stepper) uses the same tables.
+    pub(crate) fn shared(n: usize) -> Arc<Self> {
+        type Cache = Mutex<HashMap<usize, Arc<LegendreKernels>>>;
+        static CACHE: OnceLock<Cache> = OnceLock::new();
+        let cache = CACHE.get_or_init(Default::default);
+        if let Some(k) = cache.lock().unwrap_or_else(|e| e.into_inner()).get(&n) {
+            return Arc::clone(k);
+        }
+        let k = Arc::new(Self::new(n));
+        let mut map = cache.lock().unwrap_or_else(|e| e.into_inner());
+        Arc::clone(map.entry(n).or_insert(k))
     }
 
     /// The number of kernels n.
@@ -168,10 +202,10 @@ impl LegendreKernels {
             }
             return k;
         }
-        let (nodes, weights) = gauss_legendre(n);
+        let (nodes, weights) = &self.gauss;
         let mut pt = vec![0.0; n];
         let mut p = vec![0.0; n];
-        for (xi, wq) in nodes.iter().zip(&weights) {
+        for (xi, wq) in nodes.iter().zip(weights) {
             shifted_legendre(tau * xi, &mut pt);
             shifted_legendre(*xi, &mut p);
             for j in 0..n {
@@ -298,20 +332,46 @@ impl LegendreKernels {
     }
 
     fn taylor<T: Field>(&self, x: T, out: &mut [T]) {
-        let mut xm = T::real(1.0);
-        for (m, o) in out.iter_mut().enumerate() {
-            let mut term = xm.scale(self.first[m]);
-            let mut sum = term;
-            for k in m..m + 80 {
-                let f = (k + 1) as f64 / ((k + 1 - m) * (k + m + 2)) as f64;
-                term = (term * x).scale(f);
-                sum = sum + term;
-                if term.modulus() <= TAYLOR_TOL * sum.modulus() {
+        // The n series are independent: they advance together, one term each per pass, so that
+        // their multiplications overlap. Each sees the same operations in the same order as
+        // when summed alone; `out` holds the partial sums, `done` marks the converged ones.
+        let n = out.len();
+        let mut done_stack = [false; STACK];
+        let mut done_heap = Vec::new();
+        let done: &mut [bool] = if n <= STACK {
+            &mut done_stack[..n]
+        } else {
+            done_heap.resize(n, false);
+            &mut done_heap
+        };
+        with_stack(n, |term| {
+            let mut xm = T::real(1.0);
+            for ((t, o), first) in term.iter_mut().zip(out.iter_mut()).zip(&self.first) {
+                *t = xm.scale(*first);
+                *o = *t;
+                xm = xm * x;
+            }
+            let mut live = n;
+            for j in 0..TAYLOR_TERMS {
+                let series = term.iter_mut().zip(out.iter_mut()).zip(done.iter_mut());
+                for (((t, o), d), ratio) in series.zip(self.ratio.chunks_exact(TAYLOR_TERMS)) {
+                    if *d {
+                        continue;
+                    }
+                    *t = (*t * x).scale(ratio[j]);
+                    *o = *o + *t;
+                    if t.modulus_le(TAYLOR_TOL, *o) {
+                        *d = true;
+                        live -= 1;
+                    }
+                }
+                if live == 0 {
                     break;
                 }
             }
-            *o = if m % 2 == 0 { sum } else { sum.scale(-1.0) };
-            xm = xm * x;
+        });
+        for o in out.iter_mut().skip(1).step_by(2) {
+            *o = o.scale(-1.0);
         }
     }
 
@@ -469,6 +529,43 @@ mod tests {
                 w * ((1.0 - xi) * x).exp() * p[m]
             })
             .sum()
+    }
+
+    /// The squared-moduli shortcut of the Taylor stopping test decides exactly as the hypot
+    /// values do: near the threshold (where it defers to them), far from it, and for tiny, huge
+    /// and non-finite numbers.
+    #[test]
+    fn modulus_le_decides_as_hypot() {
+        let mut state = 0x2545_f491_4f6c_dd1d_u64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut cases = Vec::new();
+        for _ in 0..20000 {
+            let s = Complex64::from_polar(10f64.powf(40.0 * next() - 20.0), 7.0 * next());
+            let rel = 1.0 + (next() - 0.5) * 10f64.powf(-4.0 - 12.0 * next());
+            let t = Complex64::from_polar(s.norm() * TAYLOR_TOL * rel, 7.0 * next());
+            cases.push((t, s));
+            cases.push((t.scale(16.0), s));
+            cases.push((t.scale(1.0 / 16.0), s));
+        }
+        let tiny = Complex64::new(1e-300, -3e-301);
+        let huge = Complex64::new(1e300, 1e300);
+        let nan = Complex64::new(f64::NAN, 0.0);
+        let inf = Complex64::new(f64::INFINITY, 1.0);
+        let zero = Complex64::new(0.0, 0.0);
+        for a in [tiny, huge, nan, inf, zero, Complex64::new(1e-160, 1e-170)] {
+            for b in [tiny, huge, nan, inf, zero, Complex64::new(0.5, 0.25)] {
+                cases.push((a, b));
+            }
+        }
+        for (t, s) in cases {
+            let expect = t.re.hypot(t.im) <= TAYLOR_TOL * s.re.hypot(s.im);
+            assert_eq!(t.modulus_le(TAYLOR_TOL, s), expect, "{t} vs {s}");
+        }
     }
 
     #[test]

@@ -29,6 +29,9 @@ const UP_GOOD: f64 = 6.0;
 const TAYLOR_TOL: f64 = 3.469446951953614e-18;
 /// Scratch length kept on the stack; longer outputs use the heap.
 const STACK: usize = 40;
+/// Smallest `tol² |other|²` for which [`Field::modulus_le`] decides by squared moduli: `2⁻⁹⁰⁰`,
+/// far from underflow (and `tol` from its square).
+const MODULUS_LE_MIN: f64 = 1.1830521861667747e-271;
 
 /// The arithmetic the φ engine needs; implemented for `f64` and `Complex64`.
 pub(super) trait Field:
@@ -37,6 +40,9 @@ pub(super) trait Field:
     fn real(x: f64) -> Self;
     fn nan() -> Self;
     fn modulus(self) -> f64;
+    /// `self.modulus() <= tol * other.modulus()` for a power of two `tol`: the same decision,
+    /// without the square roots where the squared moduli decide it.
+    fn modulus_le(self, tol: f64, other: Self) -> bool;
     fn re_part(self) -> f64;
     fn has_nan(self) -> bool;
     fn all_finite(self) -> bool;
@@ -88,6 +94,10 @@ impl Field for f64 {
     #[inline]
     fn modulus(self) -> f64 {
         self.abs()
+    }
+    #[inline]
+    fn modulus_le(self, tol: f64, other: Self) -> bool {
+        self.abs() <= tol * other.abs()
     }
     #[inline]
     fn re_part(self) -> f64 {
@@ -152,6 +162,30 @@ impl Field for Complex64 {
     #[inline]
     fn modulus(self) -> f64 {
         self.re.hypot(self.im)
+    }
+    #[inline]
+    fn modulus_le(self, tol: f64, other: Self) -> bool {
+        // a = |self|²(1 ± 3u) and b = |other|²(1 ± 3u) unless they under- or overflow; `tol²`
+        // scales exactly. Where a differs from tol² b by more than a relative 1e−9, the exact
+        // moduli differ by more than 4e−10 relative, far beyond the ulp of error in the two
+        // hypot values: both comparisons agree. Otherwise (and for NaN, ∞ or tiny b) compare
+        // the hypot values themselves.
+        debug_assert_eq!(
+            tol.to_bits() & ((1 << 52) - 1),
+            0,
+            "tol must be a power of two"
+        );
+        let a = self.re * self.re + self.im * self.im;
+        let tb = (other.re * other.re + other.im * other.im) * (tol * tol);
+        if tb.is_finite() && tb >= MODULUS_LE_MIN {
+            if a < tb * (1.0 - 1e-9) {
+                return true;
+            }
+            if a > tb * (1.0 + 1e-9) {
+                return false;
+            }
+        }
+        self.modulus() <= tol * other.modulus()
     }
     #[inline]
     fn re_part(self) -> f64 {
