@@ -130,7 +130,8 @@ fn the_end_time_is_reached_and_reported() {
     );
 }
 
-/// --extrapolate: the same solution to the solver tolerance, fewer sweeps.
+/// The default extrapolating predictor against --constant-start: the same solution to the
+/// solver tolerance, fewer sweeps; --extrapolate is the default.
 #[test]
 fn extrapolating_predictor_saves_sweeps() {
     let args = [
@@ -145,12 +146,16 @@ fn extrapolating_predictor_saves_sweeps() {
         "--t-end",
         "20",
     ];
-    let plain = run_ok(&args);
+    let fast = run_ok(&args);
     let mut with: Vec<&str> = args.to_vec();
-    with.push("--extrapolate");
-    let fast = run_ok(&with);
+    with.push("--constant-start");
+    let plain = run_ok(&with);
     check_fields(&fast);
     assert_eq!(fast["solver"]["extrapolate"], true);
+    assert_eq!(plain["solver"]["extrapolate"], false);
+    with.pop();
+    with.push("--extrapolate");
+    assert_eq!(run_ok(&with)["y"], fast["y"]);
     let sweeps = |v: &serde_json::Value| v["sweeps"].as_u64().unwrap();
     assert!(
         (sweeps(&fast) as f64) < 0.85 * sweeps(&plain) as f64,

@@ -66,6 +66,7 @@ const TOKENS: &[&str] = &[
     "--max-sweeps",
     "--paper-solver",
     "--extrapolate",
+    "--constant-start",
     "--newton",
     "--family",
     "--format",

@@ -121,9 +121,13 @@ pub struct RunArgs {
     #[arg(long)]
     max_sweeps: Option<usize>,
     /// Start each step's stage iteration from the previous step's continuous solution
-    /// extrapolated to the new nodes (fewer sweeps; same converged steps up to the tolerance).
-    #[arg(long)]
+    /// extrapolated to the new nodes: the default (without --paper-solver); kept for scripts.
+    #[arg(long, conflicts_with = "constant_start")]
     extrapolate: bool,
+    /// Start each step's stage iteration at y₀ (every stage), as the paper does, instead of
+    /// extrapolating the previous step (more sweeps; the same steps up to the tolerance).
+    #[arg(long)]
+    constant_start: bool,
     /// Solve the stage equations by simplified Newton (Jacobian of g by forward differences)
     /// instead of fixed-point sweeps: for stiff nonlinearities. ECrP only.
     #[arg(long)]
@@ -313,6 +317,9 @@ fn solver_settings(args: &RunArgs) -> SolverSettings {
     if args.extrapolate {
         settings.predictor = Predictor::Extrapolate;
     }
+    if args.constant_start {
+        settings.predictor = Predictor::Constant;
+    }
     if args.newton {
         settings.solver = StageSolver::Newton;
     }
@@ -336,7 +343,7 @@ fn memory_estimate(args: &RunArgs) -> f64 {
     };
     let r = args.r.min(ecr_codegen::MAX_R) as f64;
     let s = args.s.unwrap_or(args.r).min(ecr_codegen::MAX_S) as f64;
-    let taus = if args.extrapolate {
+    let taus = if solver_settings(args).predictor == Predictor::Extrapolate {
         2.0 * s + 1.0
     } else {
         s + 1.0
@@ -464,7 +471,7 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), UsageError> {
             "tolerance": settings.tolerance,
             "max_sweeps": settings.max_sweeps,
             "paper": args.paper_solver,
-            "extrapolate": args.extrapolate,
+            "extrapolate": settings.predictor == Predictor::Extrapolate,
             "newton": args.newton,
         },
         "y": y,
