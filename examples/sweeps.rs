@@ -26,7 +26,9 @@ fn main() -> Result<(), String> {
     let hs = [0.25, 0.125, 0.0625, 0.03125, 0.015625];
     for omega in [20.0, 5.0] {
         let d = Duffing::new(omega, 0.07).map_err(|e| e.to_string())?;
-        println!("\nDuffing ω = {omega}, k = 0.07, T = 100: sweeps per step, extrapolating predictor / constant start\n");
+        println!(
+            "\nDuffing ω = {omega}, k = 0.07, T = 100: sweeps per step, extrapolating predictor / constant start\n"
+        );
         print!("| r |");
         for h in hs {
             print!(" h = {h} |");

@@ -96,7 +96,7 @@ pub fn y1_converged(residual: f64, previous: f64, theta_floor: f64, tolerance: f
         return false;
     }
     let theta = (r / p).max(theta_floor);
-    if !(theta < 0.5) {
+    if theta.is_nan() || theta >= 0.5 {
         return false;
     }
     let e = theta / (1.0 - theta) * r;
