@@ -1,6 +1,6 @@
 //! `ecr bench --quick`: one CSV per problem with finite numbers, PNG and SVG figures,
-//! summary.md covering every problem and target; an unusable --out is a one-line error with
-//! exit status 2.
+//! summary.md covering every problem and target; `--problem` restricts the work–precision
+//! part; an unusable --out or a bad --problem is a one-line error with exit status 2.
 
 mod common;
 
@@ -122,8 +122,75 @@ fn quick_bench_writes_everything() {
         "Measured at commit",
         "Scaling",
         "d log₂ d",
+        "Same CPU budget",
     ] {
         assert!(summary.contains(needle), "summary.md lacks {needle:?}");
+    }
+}
+
+/// `--problem wind`: only wind's files; the summary has no Duffing section and none of the
+/// Duffing-only measurements (DOP853's overhead, the equal-CPU energy comparison).
+#[test]
+fn problem_restricts_the_work_precision_part() {
+    let dir = TempDir::new("bench-problem");
+    let (code, stdout, stderr) = ecr(&[
+        "bench",
+        "--quick",
+        "--only",
+        "work-precision",
+        "--problem",
+        "wind",
+        "--out",
+        dir.0.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "stderr: {stderr}");
+    assert!(stdout.contains("wind.csv"), "{stdout}");
+    let methods = check_csv(&dir.0.join("wind.csv"));
+    assert!(methods.iter().any(|m| m == "EC6P macro"), "{methods:?}");
+    for id in ["duffing", "nls"] {
+        assert!(
+            !dir.0.join(format!("{id}.csv")).exists(),
+            "{id}.csv written"
+        );
+    }
+    assert!(!dir.0.join("scaling.csv").exists());
+    let summary = String::from_utf8(non_empty(&dir.0.join("summary.md"))).unwrap();
+    for needle in ["### conservative wind", "Problems run (`--problem`): wind."] {
+        assert!(summary.contains(needle), "summary.md lacks {needle:?}");
+    }
+    for absent in [
+        "### Duffing",
+        "| duffing |",
+        "Same CPU budget",
+        "DOP853's cost per evaluation",
+    ] {
+        assert!(!summary.contains(absent), "summary.md has {absent:?}");
+    }
+}
+
+/// A bad --problem (unknown, empty, in a comma list, or with --only scaling) is rejected before
+/// any work: one line on stderr naming the problem, status 2.
+#[test]
+fn bad_problem_is_a_one_line_error() {
+    let cases: &[(&[&str], &str)] = &[
+        (&["bench", "--problem", "heat"], "heat"),
+        (&["bench", "--problem", "wind,heat"], "heat"),
+        (
+            &["bench", "--quick", "--problem", "wind", "--problem", "NLS"],
+            "NLS",
+        ),
+        (
+            &["bench", "--quick", "--only", "scaling", "--problem", "wind"],
+            "--problem",
+        ),
+    ];
+    for (args, named) in cases {
+        let (code, stdout, stderr) = ecr(args);
+        assert_eq!(code, 2, "{args:?}: stdout {stdout} stderr {stderr}");
+        assert!(stdout.is_empty(), "{args:?}: {stdout}");
+        assert!(stderr.starts_with("error: "), "{args:?}: {stderr}");
+        assert_eq!(stderr.trim_end().lines().count(), 1, "{args:?}: {stderr}");
+        assert!(stderr.contains(named), "{args:?}: {stderr}");
     }
 }
 
@@ -226,6 +293,8 @@ fn malformed_arguments_are_one_line_errors() {
         &["bench", "--quick", "extra"],
         &["bench", "--out"],
         &["bench", "--quick=yes"],
+        &["bench", "--problem"],
+        &["bench", "--problem", ""],
         &["reproduce", "--bogus"],
         &["reproduce", "--out"],
         &["reproduce", "--quick", "--quick"],

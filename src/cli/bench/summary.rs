@@ -5,7 +5,8 @@
 
 use super::scaling::{self, Scaling};
 use super::sweep::{
-    Config, ERROR_CEILING, ERROR_FLOOR, Family, Point, ProblemRun, Results, solver,
+    Config, DopOverhead, ERROR_CEILING, ERROR_FLOOR, Family, LongRun, Point, ProblemRun, Results,
+    solver,
 };
 use std::fmt::Write;
 
@@ -250,6 +251,19 @@ fn work_precision(w: &mut String, c: &Config, r: &Results) {
          are not assessed.\n",
         c.repeats, settings.tolerance, c.budget, c.attempts
     );
+    if r.problems.len() < 3 {
+        let ids: Vec<&str> = r.problems.iter().map(|p| p.id).collect();
+        let _ = writeln!(
+            w,
+            "Problems run (`--problem`): {}.{}\n",
+            ids.join(", "),
+            if r.long.is_none() {
+                " The equal-CPU energy comparison and DOP853's overhead (Duffing) were not run."
+            } else {
+                ""
+            }
+        );
+    }
     let _ = writeln!(
         w,
         "### Headline: this project's best against the best peer\n"
@@ -291,7 +305,18 @@ fn work_precision(w: &mut String, c: &Config, r: &Results) {
         }
     }
     let _ = writeln!(w);
-    let d = &r.dop;
+    if let Some(d) = &r.dop {
+        dop_paragraph(w, d);
+    }
+    if let Some(l) = &r.long {
+        long_paragraph(w, l);
+    }
+    for p in &r.problems {
+        problem_section(w, p);
+    }
+}
+
+fn dop_paragraph(w: &mut String, d: &DopOverhead) {
     let _ = writeln!(
         w,
         "DOP853's cost per evaluation of f (Duffing ω = 20, T = {}, rtol = atol = {:e}; \
@@ -310,7 +335,9 @@ fn work_precision(w: &mut String, c: &Config, r: &Results) {
         d.wrapper_evals,
         d.wrapper_ns_per_eval / d.direct_ns_per_eval
     );
-    let l = &r.long;
+}
+
+fn long_paragraph(w: &mut String, l: &LongRun) {
     let _ = writeln!(
         w,
         "Same CPU budget, Duffing ω = 20 over T = {}: {} (h = {}) takes {:.3} s with max \
@@ -332,9 +359,6 @@ fn work_precision(w: &mut String, c: &Config, r: &Results) {
         l.dop_energy,
         l.dop_energy / l.ec_energy,
     );
-    for p in &r.problems {
-        problem_section(w, p);
-    }
 }
 
 /// Whether a target is assessed on this problem (far enough above the reference's error).

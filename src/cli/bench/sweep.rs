@@ -38,6 +38,17 @@ pub const DOP_TOLS: [f64; 12] = [
     1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12, 1e-13, 1e-14, 1e-15,
 ];
 
+/// The problems of the work–precision part (`ecr bench --problem`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, clap::ValueEnum)]
+pub enum ProblemId {
+    /// Duffing ω = 20 (also the equal-CPU energy comparison and DOP853's overhead).
+    Duffing,
+    /// The conservative wind problem.
+    Wind,
+    /// The cubic NLS, N = 128.
+    Nls,
+}
+
 /// Sizes of the benchmark (full or `--quick`).
 #[derive(Clone, Copy, Debug)]
 pub struct Config {
@@ -256,8 +267,10 @@ pub struct DopOverhead {
 /// Everything `ecr bench` measured.
 pub struct Results {
     pub problems: Vec<ProblemRun>,
-    pub long: LongRun,
-    pub dop: DopOverhead,
+    /// The equal-CPU energy comparison (Duffing only: run when Duffing is).
+    pub long: Option<LongRun>,
+    /// DOP853's overhead per evaluation (Duffing only: run when Duffing is).
+    pub dop: Option<DopOverhead>,
 }
 
 /// Duffing's f = Ay + g(y) written out as a user of `ode_solvers` would.
@@ -890,13 +903,27 @@ fn long_run(c: &Config) -> Result<LongRun, String> {
     })
 }
 
-/// Runs the whole benchmark.
-pub fn run_all(c: &Config) -> Result<Results, String> {
-    let problems = vec![duffing(c)?, wind(c)?, nls(c)?];
-    let long = long_run(c)?;
-    let dop = dop_overhead(c)?;
+/// Runs the work–precision part on `problems` (in the order duffing, wind, nls, each once);
+/// the equal-CPU energy comparison and DOP853's overhead only when Duffing is among them.
+pub fn run_all(c: &Config, problems: &[ProblemId]) -> Result<Results, String> {
+    let has = |id| problems.contains(&id);
+    let mut runs = Vec::new();
+    if has(ProblemId::Duffing) {
+        runs.push(duffing(c)?);
+    }
+    if has(ProblemId::Wind) {
+        runs.push(wind(c)?);
+    }
+    if has(ProblemId::Nls) {
+        runs.push(nls(c)?);
+    }
+    let (long, dop) = if has(ProblemId::Duffing) {
+        (Some(long_run(c)?), Some(dop_overhead(c)?))
+    } else {
+        (None, None)
+    };
     Ok(Results {
-        problems,
+        problems: runs,
         long,
         dop,
     })
