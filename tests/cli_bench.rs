@@ -9,7 +9,7 @@ use common::{TempDir, ecr};
 use std::path::Path;
 
 const PROBLEMS: [&str; 3] = ["duffing", "wind", "nls"];
-const HEADER: [&str; 9] = [
+const HEADER: [&str; 11] = [
     "method",
     "r",
     "s",
@@ -19,6 +19,8 @@ const HEADER: [&str; 9] = [
     "global_error",
     "max_energy_error",
     "setup_seconds",
+    "g_evals",
+    "g_seconds",
 ];
 
 fn non_empty(path: &Path) -> Vec<u8> {
@@ -27,8 +29,9 @@ fn non_empty(path: &Path) -> Vec<u8> {
     bytes
 }
 
-/// Checks the header and that every numeric cell is finite ("-": not applicable); returns the
-/// method names of the rows.
+/// Checks the header and that every numeric cell is finite ("-": not applicable; g_evals and
+/// g_seconds are given exactly for this project's series, the rows named EC…/TC…); returns
+/// the method names of the rows.
 fn check_csv(path: &Path) -> Vec<String> {
     let text = String::from_utf8(non_empty(path)).expect("UTF-8 CSV");
     let mut lines = text.lines();
@@ -40,9 +43,22 @@ fn check_csv(path: &Path) -> Vec<String> {
         assert_eq!(row.len(), HEADER.len(), "{}: {line}", path.display());
         assert!(!row[0].is_empty());
         methods.push(row[0].to_string());
+        let ours = row[0].starts_with("EC") || row[0].starts_with("TC");
         for (cell, col) in row.iter().zip(HEADER).skip(1) {
             if *cell == "-" && matches!(col, "r" | "s" | "tol") {
                 continue;
+            }
+            if matches!(col, "g_evals" | "g_seconds") {
+                assert_eq!(*cell != "-", ours, "{}: {col} of {line}", path.display());
+                if !ours {
+                    continue;
+                }
+                let x: f64 = cell.parse().unwrap();
+                assert!(
+                    x > 0.0 && x.is_finite(),
+                    "{}: {col} = {cell}",
+                    path.display()
+                );
             }
             let x: f64 = cell
                 .parse()
@@ -122,6 +138,9 @@ fn quick_bench_writes_everything() {
         "Measured at commit",
         "Scaling",
         "d log₂ d",
+        "Time over own g-evaluation cost",
+        "without set-up",
+        "Run-time / macro",
         "Same CPU budget",
     ] {
         assert!(summary.contains(needle), "summary.md lacks {needle:?}");
@@ -129,7 +148,8 @@ fn quick_bench_writes_everything() {
 }
 
 /// `--problem wind`: only wind's files; the summary has no Duffing section and none of the
-/// Duffing-only measurements (DOP853's overhead, the equal-CPU energy comparison).
+/// Duffing-only measurements (DOP853's overhead, the equal-CPU energy comparison), but wind's
+/// g-cost and run-time / macro tables.
 #[test]
 fn problem_restricts_the_work_precision_part() {
     let dir = TempDir::new("bench-problem");
@@ -155,7 +175,12 @@ fn problem_restricts_the_work_precision_part() {
     }
     assert!(!dir.0.join("scaling.csv").exists());
     let summary = String::from_utf8(non_empty(&dir.0.join("summary.md"))).unwrap();
-    for needle in ["### conservative wind", "Problems run (`--problem`): wind."] {
+    for needle in [
+        "### conservative wind",
+        "Problems run (`--problem`): wind.",
+        "Time over own g-evaluation cost",
+        "Run-time / macro",
+    ] {
         assert!(summary.contains(needle), "summary.md lacks {needle:?}");
     }
     for absent in [

@@ -74,6 +74,8 @@ fn csv(run: &ProblemRun) -> Csv {
             "global_error",
             "max_energy_error",
             "setup_seconds",
+            "g_evals",
+            "g_seconds",
         ],
         rows: run
             .points
@@ -89,6 +91,8 @@ fn csv(run: &ProblemRun) -> Csv {
                     num(p.error),
                     num(p.energy),
                     num(p.setup),
+                    opt(p.g_evals),
+                    p.g_seconds.map_or_else(|| "-".to_string(), num),
                 ]
             })
             .collect(),
