@@ -115,6 +115,9 @@ fn quick_bench_writes_everything() {
         nls.iter().any(|x| x.ends_with("dense")),
         "nls.csv lacks dense EC"
     );
+    for m in ["EC6P", "EC6P dense", "EC6P macro"] {
+        assert!(nls.iter().any(|x| x == m), "nls.csv lacks {m}");
+    }
 
     check_scaling(&out, true);
 

@@ -110,7 +110,7 @@ pub fn wind_series(w: &Wind, h0: f64) -> Vec<Series> {
     )
 }
 
-/// The NLS with the FFT operator: `Ec{r}Dyn<NlsSystem>` for r = 1..4.
+/// The NLS with the FFT operator: `Ec{r}Dyn<NlsSystem>` for r = 1..6.
 pub fn nls_series(n: &Nls, h0: f64) -> Vec<Series> {
     let mut v = Vec::new();
     macro_rules! one {
@@ -134,5 +134,7 @@ pub fn nls_series(n: &Nls, h0: f64) -> Vec<Series> {
     one!(2, Ec2Kernel, Ec2Dyn);
     one!(3, Ec3Kernel, Ec3Dyn);
     one!(4, Ec4Kernel, Ec4Dyn);
+    one!(5, Ec5Kernel, Ec5Dyn);
+    one!(6, Ec6Kernel, Ec6Dyn);
     v
 }

@@ -416,6 +416,8 @@ pub const OMEGA: f64 = 20.0;
 pub const K: f64 = 0.07;
 /// NLS grid.
 pub const NLS_N: usize = 128;
+/// ECrP on the NLS: r = 1..NLS_MAX_R (run-time, circulant and dense, and macro).
+pub const NLS_MAX_R: usize = 6;
 /// EC reference (r, h) of the wind and NLS problems.
 pub const WIND_REF: (usize, f64) = (6, 0.1 / 128.0);
 pub const NLS_REF: (usize, f64) = (6, 0.1 / 256.0);
@@ -891,10 +893,10 @@ fn nls(c: &Config) -> Result<ProblemRun, String> {
     let (y_ref, est) = ec_reference(&problem, r, h, t)?;
     let h0 = if c.quick { 0.05 } else { 0.2 };
     let mut series = Vec::new();
-    for r in 1..=4 {
+    for r in 1..=NLS_MAX_R {
         series.push(ec_series(&problem, r, r, h0, "ECrP circulant"));
     }
-    for r in 1..=4 {
+    for r in 1..=NLS_MAX_R {
         let (n, m) = (n.clone(), n.clone());
         series.push(
             step_series(&format!("EC{r}P dense"), "ECrP dense", h0, move |h| {
