@@ -142,7 +142,7 @@ fn quick_bench_writes_everything() {
         "Scaling",
         "d log₂ d",
         "Time over own g-evaluation cost",
-        "without set-up",
+        "in parentheses without set-up",
         "Run-time / macro",
         "Same CPU budget",
     ] {

@@ -496,7 +496,7 @@ fn g_cost_table(w: &mut String, p: &ProblemRun, targets: &[f64]) {
                 let q = nearest(&pts, t)?;
                 let g = q.g_seconds.filter(|&g| g > 0.0)?;
                 Some(format!(
-                    "{} ({} without set-up) at {:.1e}, h = {:.2e}",
+                    "{} ({}) at {:.1e}, h = {:.2e}",
                     times(q.cpu / g),
                     times((q.cpu - q.setup).max(0.0) / g),
                     q.error,
@@ -513,11 +513,11 @@ fn g_cost_table(w: &mut String, p: &ProblemRun, targets: &[f64]) {
     }
     let _ = writeln!(
         w,
-        "\n**Time over own g-evaluation cost**: a point's CPU time (set-up included, and \
-         without it) over the wall time of as many evaluations of its stepper's own g alone as \
-         the run made, on states saved from the run (fastest of {G_REPEATS}); at the point \
-         nearest each target (its error, h), if within a factor {NEAR} of it. `g_evals`, \
-         `g_seconds` in the CSV.\n"
+        "\n**Time over own g-evaluation cost**: a point's CPU time (set-up included; in \
+         parentheses without set-up) over the wall time of as many evaluations of its \
+         stepper's own g alone as the run made, on states saved from the run (fastest of \
+         {G_REPEATS}); at the point nearest each target (its error, h), if within a factor \
+         {NEAR} of it. `g_evals`, `g_seconds` in the CSV.\n"
     );
     let _ = write!(w, "| series | kind |");
     for t in targets {
