@@ -1,6 +1,6 @@
 //! `ecr bench --quick`: one CSV per problem with finite numbers, PNG and SVG figures,
-//! summary.md covering every problem and target; an unusable --out is a one-line error with
-//! exit status 2.
+//! summary.md covering every problem and target; `--problem` restricts the work–precision
+//! part; an unusable --out or a bad --problem is a one-line error with exit status 2.
 
 mod common;
 
@@ -9,7 +9,7 @@ use common::{TempDir, ecr};
 use std::path::Path;
 
 const PROBLEMS: [&str; 3] = ["duffing", "wind", "nls"];
-const HEADER: [&str; 9] = [
+const HEADER: [&str; 11] = [
     "method",
     "r",
     "s",
@@ -19,6 +19,8 @@ const HEADER: [&str; 9] = [
     "global_error",
     "max_energy_error",
     "setup_seconds",
+    "g_evals",
+    "g_seconds",
 ];
 
 fn non_empty(path: &Path) -> Vec<u8> {
@@ -27,8 +29,9 @@ fn non_empty(path: &Path) -> Vec<u8> {
     bytes
 }
 
-/// Checks the header and that every numeric cell is finite ("-": not applicable); returns the
-/// method names of the rows.
+/// Checks the header and that every numeric cell is finite ("-": not applicable; g_evals and
+/// g_seconds are given exactly for this project's series, the rows named EC…/TC…); returns
+/// the method names of the rows.
 fn check_csv(path: &Path) -> Vec<String> {
     let text = String::from_utf8(non_empty(path)).expect("UTF-8 CSV");
     let mut lines = text.lines();
@@ -40,9 +43,22 @@ fn check_csv(path: &Path) -> Vec<String> {
         assert_eq!(row.len(), HEADER.len(), "{}: {line}", path.display());
         assert!(!row[0].is_empty());
         methods.push(row[0].to_string());
+        let ours = row[0].starts_with("EC") || row[0].starts_with("TC");
         for (cell, col) in row.iter().zip(HEADER).skip(1) {
             if *cell == "-" && matches!(col, "r" | "s" | "tol") {
                 continue;
+            }
+            if matches!(col, "g_evals" | "g_seconds") {
+                assert_eq!(*cell != "-", ours, "{}: {col} of {line}", path.display());
+                if !ours {
+                    continue;
+                }
+                let x: f64 = cell.parse().unwrap();
+                assert!(
+                    x > 0.0 && x.is_finite(),
+                    "{}: {col} = {cell}",
+                    path.display()
+                );
             }
             let x: f64 = cell
                 .parse()
@@ -99,6 +115,9 @@ fn quick_bench_writes_everything() {
         nls.iter().any(|x| x.ends_with("dense")),
         "nls.csv lacks dense EC"
     );
+    for m in ["EC6P", "EC6P dense", "EC6P macro"] {
+        assert!(nls.iter().any(|x| x == m), "nls.csv lacks {m}");
+    }
 
     check_scaling(&out, true);
 
@@ -122,8 +141,84 @@ fn quick_bench_writes_everything() {
         "Measured at commit",
         "Scaling",
         "d log₂ d",
+        "Time over own g-evaluation cost",
+        "in parentheses without set-up",
+        "Run-time / macro",
+        "Same CPU budget",
     ] {
         assert!(summary.contains(needle), "summary.md lacks {needle:?}");
+    }
+}
+
+/// `--problem wind`: only wind's files; the summary has no Duffing section and none of the
+/// Duffing-only measurements (DOP853's overhead, the equal-CPU energy comparison), but wind's
+/// g-cost and run-time / macro tables.
+#[test]
+fn problem_restricts_the_work_precision_part() {
+    let dir = TempDir::new("bench-problem");
+    let (code, stdout, stderr) = ecr(&[
+        "bench",
+        "--quick",
+        "--only",
+        "work-precision",
+        "--problem",
+        "wind",
+        "--out",
+        dir.0.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "stderr: {stderr}");
+    assert!(stdout.contains("wind.csv"), "{stdout}");
+    let methods = check_csv(&dir.0.join("wind.csv"));
+    assert!(methods.iter().any(|m| m == "EC6P macro"), "{methods:?}");
+    for id in ["duffing", "nls"] {
+        assert!(
+            !dir.0.join(format!("{id}.csv")).exists(),
+            "{id}.csv written"
+        );
+    }
+    assert!(!dir.0.join("scaling.csv").exists());
+    let summary = String::from_utf8(non_empty(&dir.0.join("summary.md"))).unwrap();
+    for needle in [
+        "### conservative wind",
+        "Problems run (`--problem`): wind.",
+        "Time over own g-evaluation cost",
+        "Run-time / macro",
+    ] {
+        assert!(summary.contains(needle), "summary.md lacks {needle:?}");
+    }
+    for absent in [
+        "### Duffing",
+        "| duffing |",
+        "Same CPU budget",
+        "DOP853's cost per evaluation",
+    ] {
+        assert!(!summary.contains(absent), "summary.md has {absent:?}");
+    }
+}
+
+/// A bad --problem (unknown, empty, in a comma list, or with --only scaling) is rejected before
+/// any work: one line on stderr naming the problem, status 2.
+#[test]
+fn bad_problem_is_a_one_line_error() {
+    let cases: &[(&[&str], &str)] = &[
+        (&["bench", "--problem", "heat"], "heat"),
+        (&["bench", "--problem", "wind,heat"], "heat"),
+        (
+            &["bench", "--quick", "--problem", "wind", "--problem", "NLS"],
+            "NLS",
+        ),
+        (
+            &["bench", "--quick", "--only", "scaling", "--problem", "wind"],
+            "--problem",
+        ),
+    ];
+    for (args, named) in cases {
+        let (code, stdout, stderr) = ecr(args);
+        assert_eq!(code, 2, "{args:?}: stdout {stdout} stderr {stderr}");
+        assert!(stdout.is_empty(), "{args:?}: {stdout}");
+        assert!(stderr.starts_with("error: "), "{args:?}: {stderr}");
+        assert_eq!(stderr.trim_end().lines().count(), 1, "{args:?}: {stderr}");
+        assert!(stderr.contains(named), "{args:?}: {stderr}");
     }
 }
 
@@ -226,6 +321,8 @@ fn malformed_arguments_are_one_line_errors() {
         &["bench", "--quick", "extra"],
         &["bench", "--out"],
         &["bench", "--quick=yes"],
+        &["bench", "--problem"],
+        &["bench", "--problem", ""],
         &["reproduce", "--bogus"],
         &["reproduce", "--out"],
         &["reproduce", "--quick", "--quick"],

@@ -4,7 +4,7 @@
 //! stage solver. Bit-identical to the run-time stepper's steps (tests/macro_stepper.rs), so
 //! the two series differ only in time.
 
-use super::sweep::{Family, Knob, Series, solver, stepped};
+use super::sweep::{Family, GCostFn, Knob, Series, solver, stepped, time_g};
 use crate::cli::reproduce::methods::boxed;
 use ecr_runtime::ecr_method;
 use ecr_runtime::nalgebra::{DMatrix, SMatrix};
@@ -33,7 +33,13 @@ pub fn static_system<G: Fn(&[f64], &mut [f64])>(
     Ok(Semilinear::new(static_2x2(a)?, g))
 }
 
-fn series(r: usize, h0: f64, group: &'static str, build: super::sweep::BuildFn) -> Series {
+fn series(
+    r: usize,
+    h0: f64,
+    group: &'static str,
+    build: super::sweep::BuildFn,
+    g_cost: GCostFn,
+) -> Series {
     Series {
         label: format!("EC{r}P macro"),
         group,
@@ -42,6 +48,7 @@ fn series(r: usize, h0: f64, group: &'static str, build: super::sweep::BuildFn) 
         s: Some(r),
         knob: Knob::Step { h0 },
         build,
+        g_cost: Some(g_cost),
     }
 }
 
@@ -54,6 +61,7 @@ macro_rules! static_series {
         macro_rules! one {
             ($r:literal, $kernel:ident, $ty:ident) => {{
                 let (a, g) = (a.clone(), g.clone());
+                let (a2, g2) = (a.clone(), g.clone());
                 v.push(series(
                     $r,
                     $h0,
@@ -62,6 +70,10 @@ macro_rules! static_series {
                         let sys = Semilinear::new(static_2x2(&a)?, g.clone());
                         let st: $ty<_, 2> = Stepper::from_kernel($kernel, sys, h, solver())?;
                         stepped(boxed(Ok(st)))
+                    }),
+                    Box::new(move |states, n, repeats| {
+                        let sys = Semilinear::new(static_2x2(&a2)?, g2.clone());
+                        Ok(time_g(&sys, states, n, repeats))
                     }),
                 ));
             }};
@@ -98,12 +110,12 @@ pub fn wind_series(w: &Wind, h0: f64) -> Vec<Series> {
     )
 }
 
-/// The NLS with the FFT operator: `Ec{r}Dyn<NlsSystem>` for r = 1..4.
+/// The NLS with the FFT operator: `Ec{r}Dyn<NlsSystem>` for r = 1..6.
 pub fn nls_series(n: &Nls, h0: f64) -> Vec<Series> {
     let mut v = Vec::new();
     macro_rules! one {
         ($r:literal, $kernel:ident, $ty:ident) => {{
-            let n = n.clone();
+            let (n, m) = (n.clone(), n.clone());
             v.push(series(
                 $r,
                 h0,
@@ -112,6 +124,9 @@ pub fn nls_series(n: &Nls, h0: f64) -> Vec<Series> {
                     let st: $ty<_> = Stepper::from_kernel($kernel, n.system()?, h, solver())?;
                     stepped(boxed(Ok(st)))
                 }),
+                Box::new(move |states, count, repeats| {
+                    Ok(time_g(&m.system()?, states, count, repeats))
+                }),
             ));
         }};
     }
@@ -119,5 +134,7 @@ pub fn nls_series(n: &Nls, h0: f64) -> Vec<Series> {
     one!(2, Ec2Kernel, Ec2Dyn);
     one!(3, Ec3Kernel, Ec3Dyn);
     one!(4, Ec4Kernel, Ec4Dyn);
+    one!(5, Ec5Kernel, Ec5Dyn);
+    one!(6, Ec6Kernel, Ec6Dyn);
     v
 }

@@ -34,8 +34,9 @@ fn composition_name(order: usize) -> &'static str {
 }
 
 /// Duffing in second-order form: q'' + (ω² + k²) q = 2k²q³, i.e. ∇U = −2k²q³, U = −k²q⁴/2.
+/// TCrP's system in the benchmark too.
 #[allow(clippy::type_complexity)] // the closures' types are unnameable: impl Trait is the point
-fn second_order()
+pub fn second_order()
 -> ecr_runtime::Result<SecondOrder<impl Fn(&[f64], &mut [f64]), impl Fn(&[f64]) -> f64>> {
     let k2 = K * K;
     Ok(SecondOrder::with_potential(

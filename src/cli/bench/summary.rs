@@ -1,11 +1,14 @@
 //! `summary.md`: per problem and target accuracy, the cheapest method, the best of this
 //! project's methods (run-time and `ecr_method!` steppers) against the best peer, and every
 //! method's cost (log CPU interpolated linearly in log error between measured points; set-up
-//! counted), with each method's round-off floor.
+//! counted), with each method's round-off floor; for this project's series, the CPU time over
+//! the cost of their own evaluations of g, and the run-time stepper's time over the macro
+//! stepper's at equal r and h.
 
 use super::scaling::{self, Scaling};
 use super::sweep::{
-    Config, ERROR_CEILING, ERROR_FLOOR, Family, Point, ProblemRun, Results, solver,
+    Config, DopOverhead, ERROR_CEILING, ERROR_FLOOR, Family, G_REPEATS, LongRun, Point, ProblemRun,
+    Results, solver,
 };
 use std::fmt::Write;
 
@@ -250,6 +253,19 @@ fn work_precision(w: &mut String, c: &Config, r: &Results) {
          are not assessed.\n",
         c.repeats, settings.tolerance, c.budget, c.attempts
     );
+    if r.problems.len() < 3 {
+        let ids: Vec<&str> = r.problems.iter().map(|p| p.id).collect();
+        let _ = writeln!(
+            w,
+            "Problems run (`--problem`): {}.{}\n",
+            ids.join(", "),
+            if r.long.is_none() {
+                " The equal-CPU energy comparison and DOP853's overhead (Duffing) were not run."
+            } else {
+                ""
+            }
+        );
+    }
     let _ = writeln!(
         w,
         "### Headline: this project's best against the best peer\n"
@@ -291,7 +307,18 @@ fn work_precision(w: &mut String, c: &Config, r: &Results) {
         }
     }
     let _ = writeln!(w);
-    let d = &r.dop;
+    if let Some(d) = &r.dop {
+        dop_paragraph(w, d);
+    }
+    if let Some(l) = &r.long {
+        long_paragraph(w, l);
+    }
+    for p in &r.problems {
+        problem_section(w, p);
+    }
+}
+
+fn dop_paragraph(w: &mut String, d: &DopOverhead) {
     let _ = writeln!(
         w,
         "DOP853's cost per evaluation of f (Duffing ω = 20, T = {}, rtol = atol = {:e}; \
@@ -310,7 +337,9 @@ fn work_precision(w: &mut String, c: &Config, r: &Results) {
         d.wrapper_evals,
         d.wrapper_ns_per_eval / d.direct_ns_per_eval
     );
-    let l = &r.long;
+}
+
+fn long_paragraph(w: &mut String, l: &LongRun) {
     let _ = writeln!(
         w,
         "Same CPU budget, Duffing ω = 20 over T = {}: {} (h = {}) takes {:.3} s with max \
@@ -332,9 +361,6 @@ fn work_precision(w: &mut String, c: &Config, r: &Results) {
         l.dop_energy,
         l.dop_energy / l.ec_energy,
     );
-    for p in &r.problems {
-        problem_section(w, p);
-    }
 }
 
 /// Whether a target is assessed on this problem (far enough above the reference's error).
@@ -421,6 +447,8 @@ fn problem_section(w: &mut String, p: &ProblemRun) {
         }
         let _ = writeln!(w);
     }
+    g_cost_table(w, p, &targets);
+    runtime_over_macro(w, p);
     if !p.notes.is_empty() {
         let _ = writeln!(w, "\nSkipped points:\n");
         for n in &p.notes {
@@ -428,6 +456,160 @@ fn problem_section(w: &mut String, p: &ProblemRun) {
         }
     }
     let _ = writeln!(w);
+}
+
+/// Points nearer a target than this factor (in error) count for it in the g-cost table: a
+/// series halves h, so an order-2r method (r ≤ 6) has a point within a factor 2^r ≤ 64 of any
+/// target inside its range.
+pub const NEAR: f64 = 100.0;
+
+/// The point whose error is nearest `target` (in log error), if within a factor [`NEAR`].
+pub fn nearest<'a>(points: &[&'a Point], target: f64) -> Option<&'a Point> {
+    let dist = |p: &Point| (p.error / target).log10().abs();
+    points
+        .iter()
+        .copied()
+        .filter(|p| p.error > 0.0 && p.error.is_finite() && dist(p) <= NEAR.log10())
+        .min_by(|a, b| dist(a).total_cmp(&dist(b)))
+}
+
+/// A multiple to about three significant digits: 2.13×, 21.3×, 213×.
+fn times(x: f64) -> String {
+    if x < 10.0 {
+        format!("{x:.2}×")
+    } else if x < 100.0 {
+        format!("{x:.1}×")
+    } else {
+        format!("{x:.0}×")
+    }
+}
+
+/// Per series of ours and target: its CPU time over its own g-evaluation cost at the point
+/// nearest the target.
+fn g_cost_table(w: &mut String, p: &ProblemRun, targets: &[f64]) {
+    let mut rows = Vec::new();
+    for (label, _, family) in p.series.iter().filter(|s| s.2.is_ours()) {
+        let pts = series_points(p, label);
+        let cells: Vec<Option<String>> = targets
+            .iter()
+            .map(|&t| {
+                let q = nearest(&pts, t)?;
+                let g = q.g_seconds.filter(|&g| g > 0.0)?;
+                Some(format!(
+                    "{} ({}) at {:.1e}, h = {:.2e}",
+                    times(q.cpu / g),
+                    times((q.cpu - q.setup).max(0.0) / g),
+                    q.error,
+                    q.h
+                ))
+            })
+            .collect();
+        if cells.iter().any(Option::is_some) {
+            rows.push((label, *family, cells));
+        }
+    }
+    if rows.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        w,
+        "\n**Time over own g-evaluation cost**: a point's CPU time (set-up included; in \
+         parentheses without set-up) over the wall time of as many evaluations of its \
+         stepper's own g alone as the run made, on states saved from the run (fastest of \
+         {G_REPEATS}); at the point nearest each target (its error, h), if within a factor \
+         {NEAR} of it. `g_evals`, `g_seconds` in the CSV.\n"
+    );
+    let _ = write!(w, "| series | kind |");
+    for t in targets {
+        let _ = write!(w, " {t:e} |");
+    }
+    let _ = write!(w, "\n|---|---|");
+    for _ in targets {
+        let _ = write!(w, "---|");
+    }
+    let _ = writeln!(w);
+    for (label, family, cells) in rows {
+        let _ = write!(w, "| {label} | {} |", family_name(family));
+        for c in cells {
+            let _ = write!(w, " {} |", c.as_deref().unwrap_or("-"));
+        }
+        let _ = writeln!(w);
+    }
+}
+
+/// The run-time stepper's CPU time over the macro stepper's at the same r and h.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Paired {
+    /// Step sizes both series have a point at.
+    pub common: usize,
+    pub median: f64,
+    /// The largest ratio, and its h.
+    pub worst: f64,
+    pub worst_h: f64,
+}
+
+/// Pairs the points of two series at equal h (relative 1e−9): CPU(run-time) / CPU(macro).
+pub fn paired(runtime: &[&Point], macro_: &[&Point]) -> Option<Paired> {
+    let mut ratios: Vec<(f64, f64)> = runtime
+        .iter()
+        .filter_map(|a| {
+            let b = macro_
+                .iter()
+                .find(|b| (a.h - b.h).abs() <= 1e-9 * a.h.abs())?;
+            (a.cpu > 0.0 && b.cpu > 0.0).then(|| (a.cpu / b.cpu, a.h))
+        })
+        .collect();
+    if ratios.is_empty() {
+        return None;
+    }
+    let &(worst, worst_h) = ratios.iter().max_by(|x, y| x.0.total_cmp(&y.0))?;
+    ratios.sort_by(|x, y| x.0.total_cmp(&y.0));
+    let n = ratios.len();
+    let median = if n % 2 == 1 {
+        ratios[n / 2].0
+    } else {
+        0.5 * (ratios[n / 2 - 1].0 + ratios[n / 2].0)
+    };
+    Some(Paired {
+        common: n,
+        median,
+        worst,
+        worst_h,
+    })
+}
+
+/// Per r: `EC{r}P` (run-time) against `EC{r}P macro` at their common step sizes.
+fn runtime_over_macro(w: &mut String, p: &ProblemRun) {
+    let mut rows = Vec::new();
+    for r in 1..=32 {
+        let (rt, mac) = (format!("EC{r}P"), format!("EC{r}P macro"));
+        let has = |l: &str, f| p.series.iter().any(|s| s.0 == l && s.2 == f);
+        if !has(&rt, Family::Runtime) || !has(&mac, Family::Macro) {
+            continue;
+        }
+        if let Some(x) = paired(&series_points(p, &rt), &series_points(p, &mac)) {
+            rows.push((r, x));
+        }
+    }
+    if rows.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        w,
+        "\n**Run-time / macro**: CPU time of `EC{{r}}P` (run-time stepper) over `EC{{r}}P macro` \
+         at the same h, median and largest over the h both have (> 1: the run-time stepper is \
+         slower).\n\n| r | common h | median | largest (h) |\n|---|---|---|---|"
+    );
+    for (r, x) in rows {
+        let _ = writeln!(
+            w,
+            "| {r} | {} | {} | {} (h = {:.2e}) |",
+            x.common,
+            ratio(x.median),
+            ratio(x.worst),
+            x.worst_h
+        );
+    }
 }
 
 #[cfg(test)]
@@ -445,6 +627,8 @@ mod tests {
             setup: 0.0,
             error,
             energy: 0.0,
+            g_evals: None,
+            g_seconds: None,
         }
     }
 
@@ -477,6 +661,39 @@ mod tests {
             panic!("1e-3 is reached")
         };
         assert!(!bound && cpu > 2.0 && cpu < 4.0, "{cpu}");
+    }
+
+    #[test]
+    fn nearest_point_is_within_a_factor_near() {
+        let pts = [point(3e-5, 1.0), point(2e-7, 2.0), point(1e-9, 4.0)];
+        let refs: Vec<&Point> = pts.iter().collect();
+        assert_eq!(nearest(&refs, 1e-6).map(|p| p.cpu), Some(2.0));
+        assert_eq!(nearest(&refs, 1e-8).map(|p| p.cpu), Some(4.0));
+        assert_eq!(nearest(&refs, 3e-11).map(|p| p.cpu), Some(4.0));
+        // 1e-9 is a factor 1000 from 1e-12: too far to stand for it.
+        assert!(nearest(&refs, 1e-12).is_none());
+    }
+
+    #[test]
+    fn runtime_over_macro_pairs_equal_h() {
+        let at = |h: f64, cpu: f64| Point {
+            h,
+            ..point(1e-6, cpu)
+        };
+        let rt = [at(0.1, 3.0), at(0.05, 4.0), at(0.025, 9.0), at(0.0125, 5.0)];
+        let mac = [at(0.1, 2.0), at(0.05, 2.0), at(0.025, 3.0)];
+        let (a, b): (Vec<&Point>, Vec<&Point>) = (rt.iter().collect(), mac.iter().collect());
+        // Ratios 1.5, 2, 3 at the three common h (0.0125 has no macro point).
+        assert_eq!(
+            paired(&a, &b),
+            Some(Paired {
+                common: 3,
+                median: 2.0,
+                worst: 3.0,
+                worst_h: 0.025
+            })
+        );
+        assert_eq!(paired(&a, &b[..0]), None);
     }
 
     #[test]

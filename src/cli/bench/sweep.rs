@@ -11,9 +11,10 @@ use ecr_runtime::baselines::dop853::Dop853;
 use ecr_runtime::baselines::exponential::HochOst4;
 use ecr_runtime::integrate::{IntegrateOptions, integrate};
 use ecr_runtime::problems::{Duffing, Nls, Wind};
-use ecr_runtime::second_order::{Omega, SecondOrder, TcStepper};
+use ecr_runtime::second_order::{SecondOrderForm, TcStepper};
 use ecr_runtime::stepper::{EcStepper, Predictor, SolverSettings};
 use ecr_runtime::system::System;
+use std::hint::black_box;
 use std::time::Instant;
 
 /// The stage solver of every implicit method in the benchmark (ECrP, TCrP, HBVM family):
@@ -37,6 +38,22 @@ pub const MAX_HALVINGS: i32 = 24;
 pub const DOP_TOLS: [f64; 12] = [
     1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12, 1e-13, 1e-14, 1e-15,
 ];
+
+/// Timings of a point's g-evaluation cost (the fastest is kept).
+pub const G_REPEATS: usize = 3;
+/// Most states saved from a run to evaluate g on when timing its cost.
+const SAVED_STATES: usize = 16;
+
+/// The problems of the work–precision part (`ecr bench --problem`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, clap::ValueEnum)]
+pub enum ProblemId {
+    /// Duffing ω = 20 (also the equal-CPU energy comparison and DOP853's overhead).
+    Duffing,
+    /// The conservative wind problem.
+    Wind,
+    /// The cubic NLS, N = 128.
+    Nls,
+}
 
 /// Sizes of the benchmark (full or `--quick`).
 #[derive(Clone, Copy, Debug)]
@@ -118,12 +135,13 @@ pub type Observe<'a> = &'a mut dyn FnMut(&[f64]);
 pub trait Run {
     /// Integrates y over [0, t_end] in place, calling `observe(y)` after every step when
     /// given (accepted steps for adaptive methods).
+    /// Returns the evaluations of g the method reports (DOP853: of f = Ay + g).
     fn run(
         &mut self,
         y: &mut [f64],
         t_end: f64,
         observe: Option<Observe<'_>>,
-    ) -> Result<(), String>;
+    ) -> Result<usize, String>;
 }
 
 /// A fixed-step integrator, driven by [`integrate`].
@@ -135,7 +153,7 @@ impl Run for Stepped {
         y: &mut [f64],
         t_end: f64,
         observe: Option<Observe<'_>>,
-    ) -> Result<(), String> {
+    ) -> Result<usize, String> {
         let options = IntegrateOptions {
             energy_every: 0,
             observe_every: usize::from(observe.is_some()),
@@ -144,7 +162,7 @@ impl Run for Stepped {
             Some(f) => integrate(&mut self.0, 0.0, t_end, y, options, |_, y, _| f(y)),
             None => integrate(&mut self.0, 0.0, t_end, y, options, |_, _, _| {}),
         }
-        .map(drop)
+        .map(|report| report.g_evals)
         .map_err(err_s)
     }
 }
@@ -156,12 +174,12 @@ impl<S: System> Run for Dop853<S> {
         y: &mut [f64],
         t_end: f64,
         observe: Option<Observe<'_>>,
-    ) -> Result<(), String> {
+    ) -> Result<usize, String> {
         match observe {
             Some(f) => self.integrate_observed(0.0, t_end, y, &mut |_, y| f(y)),
             None => self.integrate(0.0, t_end, y),
         }
-        .map(drop)
+        .map(|stats| stats.f_evals)
         .map_err(err_s)
     }
 }
@@ -179,6 +197,34 @@ pub type BuildFn = Box<dyn Fn(f64) -> ecr_runtime::Result<BoxedRun>>;
 type Build = BuildFn;
 /// A registered method's constructor.
 type RegistryBuild = fn(&Problem, f64) -> ecr_runtime::Result<BoxedIntegrator>;
+/// Times `n` evaluations of the g a series' stepper calls, cycling through the given states;
+/// returns the fastest of `repeats` timings (seconds).
+pub type GCostFn = Box<dyn Fn(&[Vec<f64>], usize, usize) -> ecr_runtime::Result<f64>>;
+
+/// The fastest of `repeats` timings of `n` evaluations of `sys`'s g (what its stepper calls on
+/// the hot path, with the same scratch), cycling through `states`; `black_box` keeps every
+/// evaluation (nothing hoisted, no output dropped).
+pub fn time_g<S: System>(sys: &S, states: &[Vec<f64>], n: usize, repeats: usize) -> f64 {
+    let mut out = vec![0.0; sys.dim()];
+    let mut scratch = vec![0.0; sys.scratch_len()];
+    let mut best = f64::INFINITY;
+    for _ in 0..repeats.max(1) {
+        let start = Instant::now();
+        for y in states.iter().cycle().take(n) {
+            sys.nonlinear(black_box(y), black_box(&mut out), black_box(&mut scratch));
+        }
+        black_box(&out);
+        best = best.min(start.elapsed().as_secs_f64());
+    }
+    best
+}
+
+/// The g-evaluation cost of the problem's own `System` (what [`ec`] builds the run-time
+/// stepper on): `Duffing::nonlinear`, `Wind::nonlinear`, `Nls::nonlinear`.
+fn problem_g_cost(problem: &Problem) -> GCostFn {
+    let p = problem.clone();
+    Box::new(move |states, n, repeats| on_system!(&p, sys => Ok(time_g(&sys, states, n, repeats))))
+}
 
 /// One curve: a method with fixed parameters.
 pub struct Series {
@@ -191,6 +237,9 @@ pub struct Series {
     pub knob: Knob,
     /// Builds the integrator for h (Step) or tol (Tol).
     pub build: Build,
+    /// This project's series: the cost of evaluating its stepper's g (the points record their
+    /// g evaluations and that cost).
+    pub g_cost: Option<GCostFn>,
 }
 
 /// One measured point.
@@ -210,6 +259,11 @@ pub struct Point {
     pub error: f64,
     /// max over every step of |H − H0| / |H0|.
     pub energy: f64,
+    /// This project's series: evaluations of g in the run.
+    pub g_evals: Option<usize>,
+    /// This project's series: wall-clock seconds of that many evaluations of the stepper's g
+    /// alone, on states saved from the run (fastest of [`G_REPEATS`]).
+    pub g_seconds: Option<f64>,
 }
 
 /// Everything measured for one problem.
@@ -256,8 +310,10 @@ pub struct DopOverhead {
 /// Everything `ecr bench` measured.
 pub struct Results {
     pub problems: Vec<ProblemRun>,
-    pub long: LongRun,
-    pub dop: DopOverhead,
+    /// The equal-CPU energy comparison (Duffing only: run when Duffing is).
+    pub long: Option<LongRun>,
+    /// DOP853's overhead per evaluation (Duffing only: run when Duffing is).
+    pub dop: Option<DopOverhead>,
 }
 
 /// Duffing's f = Ay + g(y) written out as a user of `ode_solvers` would.
@@ -360,6 +416,8 @@ pub const OMEGA: f64 = 20.0;
 pub const K: f64 = 0.07;
 /// NLS grid.
 pub const NLS_N: usize = 128;
+/// ECrP on the NLS: r = 1..NLS_MAX_R (run-time, circulant and dense, and macro).
+pub const NLS_MAX_R: usize = 6;
 /// EC reference (r, h) of the wind and NLS problems.
 pub const WIND_REF: (usize, f64) = (6, 0.1 / 128.0);
 pub const NLS_REF: (usize, f64) = (6, 0.1 / 256.0);
@@ -390,17 +448,28 @@ fn timed(build: &Build, x: f64, y0: &[f64], t_end: f64) -> Result<(Vec<f64>, f64
     Ok((y, setup, seconds))
 }
 
-/// Integrates with H checked after every step; returns (y(T), max |H − H0|/|H0|, seconds).
-fn with_energy(
-    build: &Build,
-    x: f64,
-    problem: &Problem,
-    t_end: f64,
-) -> Result<(Vec<f64>, f64, f64), String> {
+/// A run with H checked after every step.
+struct Observed {
+    /// y(T).
+    y: Vec<f64>,
+    /// max |H − H0|/|H0|.
+    energy: f64,
+    /// Wall-clock seconds (set-up included, observation too).
+    seconds: f64,
+    /// Evaluations of g the method reported.
+    g_evals: usize,
+    /// y0 and the states after steps 1, 2, 4, 8, … (at most [`SAVED_STATES`]).
+    states: Vec<Vec<f64>>,
+}
+
+/// Integrates with H checked after every step.
+fn with_energy(build: &Build, x: f64, problem: &Problem, t_end: f64) -> Result<Observed, String> {
     let mut y = problem.initial_value();
     let h0 = problem.energy(&y);
     let scale = h0.abs().max(f64::MIN_POSITIVE);
     let mut max_e = 0.0f64;
+    let mut states = vec![y.clone()];
+    let mut calls = 0usize;
     let start = Instant::now();
     let mut method = build(x).map_err(err_s)?;
     let result = method.run(
@@ -409,14 +478,24 @@ fn with_energy(
         Some(&mut |y: &[f64]| {
             let e = (problem.energy(y) - h0).abs() / scale;
             max_e = max_e.max(if e.is_finite() { e } else { f64::INFINITY });
+            calls += 1;
+            if calls.is_power_of_two() && states.len() < SAVED_STATES {
+                states.push(y.to_vec());
+            }
         }),
     );
     let seconds = start.elapsed().as_secs_f64();
-    result?;
+    let g_evals = result?;
     if y.iter().any(|v| !v.is_finite()) {
         return Err("the solution is not finite".to_string());
     }
-    Ok((y, max_e, seconds))
+    Ok(Observed {
+        y,
+        energy: max_e,
+        seconds,
+        g_evals,
+        states,
+    })
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -451,7 +530,13 @@ fn sweep(
             Knob::Tol => format!("tol = {x:e}"),
         };
         let measured = with_energy(&series.build, x, problem, t_end);
-        let (y, energy, seconds) = match measured {
+        let Observed {
+            y,
+            energy,
+            seconds,
+            g_evals,
+            states,
+        } = match measured {
             Ok(m) => m,
             Err(e) => {
                 skipped.push(format!("{what} ({e})"));
@@ -483,6 +568,16 @@ fn sweep(
         if times.len() < c.repeats {
             continue;
         }
+        let g_seconds = match &series.g_cost {
+            Some(cost) => match cost(&states, g_evals, G_REPEATS) {
+                Ok(s) => Some(s),
+                Err(e) => {
+                    skipped.push(format!("{what} (g-evaluation cost: {e})"));
+                    continue;
+                }
+            },
+            None => None,
+        };
         let (h, tol) = match series.knob {
             Knob::Step { .. } => (x, None),
             Knob::Tol => (t_end, Some(x)),
@@ -497,6 +592,8 @@ fn sweep(
             setup: median(setups),
             error,
             energy,
+            g_evals: series.g_cost.as_ref().map(|_| g_evals),
+            g_seconds,
         });
         let stagnating = last_error.is_some_and(|p| error >= 0.5 * p && error < 1e-7);
         let recorded = points.iter().filter(|p| p.series == series.label).count();
@@ -549,6 +646,7 @@ fn ec_series(problem: &Problem, r: usize, s: usize, h0: f64, group: &'static str
         s: Some(s),
         knob: Knob::Step { h0 },
         build: Box::new(move |h| stepped(ec(&p, r, s, h, solver()))),
+        g_cost: Some(problem_g_cost(problem)),
     }
 }
 
@@ -566,6 +664,7 @@ pub fn step_series(
         s: None,
         knob: Knob::Step { h0 },
         build: Box::new(move |h| stepped(build(h))),
+        g_cost: None,
     }
 }
 
@@ -598,6 +697,7 @@ fn dop_series(problem: &Problem) -> Series {
             }
             Problem::Nls(n) => Ok(Box::new(Dop853::new(n.system()?, tol, tol)?) as BoxedRun),
         }),
+        g_cost: None,
     }
 }
 
@@ -646,20 +746,24 @@ fn dense_baselines(problem: &Problem, h0: f64) -> Result<Vec<Series>, String> {
     Ok(v)
 }
 
-/// TCrP on the second-order form of Duffing: q'' + (ω² + k²) q = 2k²q³, i.e. ∇U = −2k²q³,
-/// U = −k²q⁴/2.
+/// TCrP on the second-order form of Duffing (the strong peers' [`peers::second_order`]):
+/// q'' + (ω² + k²) q = 2k²q³, i.e. ∇U = −2k²q³, U = −k²q⁴/2. Its g is the first-order form's
+/// (0, −∇U(q)).
 fn tc_series(r: usize, h0: f64) -> Series {
     step_series(&format!("TC{r}P"), "TCrP", h0, move |h| {
-        let k2 = K * K;
-        let sys = SecondOrder::with_potential(
-            Omega::scalar(OMEGA * OMEGA + k2, 1)?,
-            move |q: &[f64], f: &mut [f64]| f[0] = -2.0 * k2 * q[0].powi(3),
-            move |q: &[f64]| -0.5 * k2 * q[0].powi(4),
-        );
-        boxed(TcStepper::with_nodes(sys, r, r, h, solver()))
+        boxed(TcStepper::with_nodes(
+            peers::second_order()?,
+            r,
+            r,
+            h,
+            solver(),
+        ))
     })
     .with_rs(r, r)
-    .ours()
+    .ours(Box::new(|states, n, repeats| {
+        let form = SecondOrderForm::new(peers::second_order()?)?;
+        Ok(time_g(&form, states, n, repeats))
+    }))
 }
 
 impl Series {
@@ -669,9 +773,11 @@ impl Series {
         self
     }
 
-    /// Marks a series as one of this project's methods with the run-time stepper.
-    fn ours(mut self) -> Self {
+    /// Marks a series as one of this project's methods with the run-time stepper, whose g
+    /// costs `g_cost`.
+    fn ours(mut self, g_cost: GCostFn) -> Self {
         self.family = Family::Runtime;
+        self.g_cost = Some(g_cost);
         self
     }
 }
@@ -787,17 +893,19 @@ fn nls(c: &Config) -> Result<ProblemRun, String> {
     let (y_ref, est) = ec_reference(&problem, r, h, t)?;
     let h0 = if c.quick { 0.05 } else { 0.2 };
     let mut series = Vec::new();
-    for r in 1..=4 {
+    for r in 1..=NLS_MAX_R {
         series.push(ec_series(&problem, r, r, h0, "ECrP circulant"));
     }
-    for r in 1..=4 {
-        let n = n.clone();
+    for r in 1..=NLS_MAX_R {
+        let (n, m) = (n.clone(), n.clone());
         series.push(
             step_series(&format!("EC{r}P dense"), "ECrP dense", h0, move |h| {
                 boxed(EcStepper::with_nodes(n.dense_system()?, r, r, h, solver()))
             })
             .with_rs(r, r)
-            .ours(),
+            .ours(Box::new(move |states, count, repeats| {
+                Ok(time_g(&m.dense_system()?, states, count, repeats))
+            })),
         );
     }
     series.extend(macros::nls_series(&n, h0));
@@ -846,7 +954,7 @@ fn long_run(c: &Config) -> Result<LongRun, String> {
         times.push(timed(&build_ec, ec_h, &y0, t)?.2);
     }
     let ec_cpu = median(times);
-    let (_, ec_energy, _) = with_energy(&build_ec, ec_h, &problem, t)?;
+    let ec_energy = with_energy(&build_ec, ec_h, &problem, t)?.energy;
     let build_dop = dop_series(&problem).build;
     // Bisection on log10(tol) in [−14, −3]: the CPU time falls as tol grows.
     let (mut lo, mut hi) = (-14.0f64, -3.0f64);
@@ -876,7 +984,7 @@ fn long_run(c: &Config) -> Result<LongRun, String> {
         times.push(timed(&build_dop, dop_tol, &y0, t)?.2);
     }
     let dop_cpu = median(times);
-    let (_, dop_energy, _) = with_energy(&build_dop, dop_tol, &problem, t)?;
+    let dop_energy = with_energy(&build_dop, dop_tol, &problem, t)?.energy;
     Ok(LongRun {
         t_end: t,
         ec_label: format!("EC{r}P"),
@@ -890,13 +998,27 @@ fn long_run(c: &Config) -> Result<LongRun, String> {
     })
 }
 
-/// Runs the whole benchmark.
-pub fn run_all(c: &Config) -> Result<Results, String> {
-    let problems = vec![duffing(c)?, wind(c)?, nls(c)?];
-    let long = long_run(c)?;
-    let dop = dop_overhead(c)?;
+/// Runs the work–precision part on `problems` (in the order duffing, wind, nls, each once);
+/// the equal-CPU energy comparison and DOP853's overhead only when Duffing is among them.
+pub fn run_all(c: &Config, problems: &[ProblemId]) -> Result<Results, String> {
+    let has = |id| problems.contains(&id);
+    let mut runs = Vec::new();
+    if has(ProblemId::Duffing) {
+        runs.push(duffing(c)?);
+    }
+    if has(ProblemId::Wind) {
+        runs.push(wind(c)?);
+    }
+    if has(ProblemId::Nls) {
+        runs.push(nls(c)?);
+    }
+    let (long, dop) = if has(ProblemId::Duffing) {
+        (Some(long_run(c)?), Some(dop_overhead(c)?))
+    } else {
+        (None, None)
+    };
     Ok(Results {
-        problems,
+        problems: runs,
         long,
         dop,
     })
