@@ -281,7 +281,20 @@ pub struct SolverSettings {
     /// ([`PhiBank::propagate_dd`]; see the module docs). On by default: it removes the
     /// round-off drift of the energy in long runs for a few more operations per step.
     pub compensated: bool,
+    /// Systems of this dimension d or more run the independent work of each step's stages
+    /// concurrently on rayon's thread pool: g at the s stages ([`System::nonlinear_stages`],
+    /// concurrent where the system allows it), the bank's `combine` over the stage nodes
+    /// ([`PhiBank::combine_concurrent`]: for the FFT operators the inputs' transforms, then the
+    /// nodes' inverse transforms) and the end of the step ([`PhiBank::join`]). The results are
+    /// bit for bit those of the serial path. Default [`PARALLEL_MIN_DIM`], measured;
+    /// `usize::MAX`: always serial. Smaller systems take the serial path unchanged.
+    pub parallel_min_dim: usize,
 }
+
+/// The default [`SolverSettings::parallel_min_dim`]: the dimension from which the concurrent
+/// stage path is faster than the serial one for the FFT operators, measured on 2 cores (EC2P
+/// and EC3P on the 1D NLS, `cargo bench --bench parallel -- threshold`).
+pub const PARALLEL_MIN_DIM: usize = 1 << 13;
 
 impl Default for SolverSettings {
     /// Tolerance 1e−15, at most 100 sweeps, error at the limit, stages started at y₀,
@@ -295,6 +308,7 @@ impl Default for SolverSettings {
             solver: StageSolver::FixedPoint,
             scale: StageScale::Global,
             compensated: true,
+            parallel_min_dim: PARALLEL_MIN_DIM,
         }
     }
 }
@@ -351,6 +365,7 @@ impl SolverSettings {
             solver: StageSolver::FixedPoint,
             scale: StageScale::Global,
             compensated: true,
+            parallel_min_dim: PARALLEL_MIN_DIM,
         }
     }
 }
@@ -657,6 +672,107 @@ pub struct Stepper<K: Kernel, S: System, B: Buffers> {
     /// Newton data ([`StageSolver::Newton`], [`StageSolver::SimplifiedNewton`]), built at the
     /// first step for this h.
     newton: Option<Box<NewtonState>>,
+    /// The memory of the concurrent stage path, for d ≥
+    /// [`SolverSettings::parallel_min_dim`] (else `None`: the serial path).
+    par: Option<Box<ParallelState<BankWorkspace<S>>>>,
+}
+
+/// The workspace of a system's kernel bank.
+type BankWorkspace<S> = <<<S as System>::Op as LinearOperator>::Bank as PhiBank>::Workspace;
+
+/// What the concurrent stage path ([`SolverSettings::parallel_min_dim`]) uses besides the
+/// serial path's buffers, allocated with the bank (never per step).
+struct ParallelState<W> {
+    /// One workspace per concurrent task of the bank's operations: as many as rayon's pool has
+    /// threads, at least 2 (the end of a step runs two tasks) and at most max(s, r + 1) (the
+    /// pieces of a `combine` over the stage nodes).
+    helpers: Vec<W>,
+    /// A scratch of [`System::scratch_len`] per stage, for g at the stages.
+    scratch: Vec<f64>,
+}
+
+impl<W> ParallelState<W> {
+    /// The state for a system of dimension d with scratch `scratch_len`, s stages and r
+    /// moments, if d ≥ `min_dim`. Starts rayon's pool (once per process), so that steps do
+    /// not allocate.
+    fn new<Bk: PhiBank<Workspace = W>>(
+        bank: &Bk,
+        min_dim: usize,
+        s: usize,
+        r: usize,
+        scratch_len: usize,
+    ) -> Option<Box<Self>> {
+        (bank.dim() >= min_dim).then(|| {
+            let tasks = rayon::current_num_threads().clamp(2, s.max(r + 1));
+            Box::new(ParallelState {
+                helpers: (0..tasks).map(|_| bank.workspace()).collect(),
+                scratch: vec![0.0; s * scratch_len],
+            })
+        })
+    }
+}
+
+/// The end of a step on the concurrent path: y₁ as the serial path computes it (the
+/// compensated update where `compensated` and the bank carries its propagator, else one
+/// `combine` at τ = 1), with the independent bank operations run concurrently: e^{hA} y₀ in
+/// double-double and then e^{hA} c on one task, the nonlinear part on the other.
+#[allow(clippy::too_many_arguments)]
+fn finish_concurrent<Bk: PhiBank>(
+    bank: &Bk,
+    par: &mut ParallelState<Bk::Workspace>,
+    ws: &mut Bk::Workspace,
+    s: usize,
+    compensated: bool,
+    y0: &[f64],
+    moments: &[f64],
+    coef: &[f64],
+    y: &mut [f64],
+    last: &mut [f64],
+    comp: &mut [f64],
+    hi: &mut [f64],
+    lo: &mut [f64],
+    ec: &mut [f64],
+) {
+    if compensated {
+        last.fill(0.0);
+        let (wa, wb) = par.helpers.split_at_mut(1);
+        let comp_in: &[f64] = comp;
+        let last: &[f64] = last;
+        let (carried, ()) = bank.join(
+            &mut wa[0],
+            &mut wb[0],
+            |bk, w| {
+                let carried = bk.propagate_dd(s, y0, hi, lo, w);
+                if carried {
+                    bk.apply(s, 0, comp_in, ec, w);
+                }
+                carried
+            },
+            |bk, w| bk.combine(s..s + 1, last, moments, coef, y, w),
+        );
+        if carried {
+            compensated_sum(y, comp, hi, lo, ec);
+            return;
+        }
+    }
+    bank.combine_concurrent(s..s + 1, y0, moments, coef, y, ws, &mut par.helpers);
+}
+
+/// y₁ = hi + lo + N + e (double-double propagated state, nonlinear part N in `y`, propagated
+/// rounding error e), rounded to `y`, its rounding error to `comp`.
+#[inline(always)]
+fn compensated_sum(y: &mut [f64], comp: &mut [f64], hi: &[f64], lo: &[f64], ec: &[f64]) {
+    for ((((yv, c), h), l), e) in y
+        .iter_mut()
+        .zip(comp.iter_mut())
+        .zip(hi.iter())
+        .zip(lo.iter())
+        .zip(ec.iter())
+    {
+        let (sum, err) = two_sum(*h, *l + *yv + *e);
+        *yv = sum;
+        *c = err;
+    }
 }
 
 /// The most numbers the Newton iteration holds at once: the stage matrices and the Newton
@@ -1017,6 +1133,13 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
         }
         let buf = B::with_sizes(kernel.r(), kernel.s(), system.dim())?;
         let (bank, coef, fused, ws) = Self::build_bank(&system, &kernel, h, settings.predictor)?;
+        let par = ParallelState::new(
+            &bank,
+            settings.parallel_min_dim,
+            kernel.s(),
+            kernel.r(),
+            system.scratch_len(),
+        );
         Ok(Stepper {
             scratch: vec![0.0; system.scratch_len()],
             kernel,
@@ -1030,6 +1153,7 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             buf,
             have_previous: false,
             newton: None,
+            par,
         })
     }
 
@@ -1074,6 +1198,15 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
         }
         let (bank, coef, fused, ws) =
             Self::build_bank(&self.system, &self.kernel, h, self.settings.predictor)?;
+        // The concurrent path's workspaces are the new bank's (the old ones go first).
+        self.par = None;
+        self.par = ParallelState::new(
+            &bank,
+            self.settings.parallel_min_dim,
+            self.kernel.s(),
+            self.kernel.r(),
+            self.system.scratch_len(),
+        );
         self.ws = ws;
         self.bank = bank;
         self.coef = coef;
@@ -1177,6 +1310,7 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             buf,
             have_previous,
             newton,
+            par,
             ..
         } = self;
         buf.with_parts(|parts| {
@@ -1194,6 +1328,13 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             // Only a completed step that ended exactly at y may seed the predictor or hand on its
             // rounding error; a failed step leaves no usable previous step.
             let continuing = std::mem::take(have_previous) && *last == *y;
+            // The concurrent path (large d; never with fixed-size buffers, which are for small
+            // systems: then this is `None` at compile time).
+            let mut par = if B::LOCAL_STAGES {
+                None
+            } else {
+                par.as_deref_mut()
+            };
             if !continuing {
                 comp.fill(0.0);
             }
@@ -1261,10 +1402,25 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                 if B::LOCAL_STAGES {
                     bank.combine(s + 1..2 * s + 1, y0, moments, &coef[pred], props, ws);
                     stages.copy_from_slice(props);
+                } else if let Some(p) = par.as_deref_mut() {
+                    let c = &coef[pred];
+                    bank.combine_concurrent(
+                        s + 1..2 * s + 1,
+                        y0,
+                        moments,
+                        c,
+                        stages,
+                        ws,
+                        &mut p.helpers,
+                    );
                 } else {
                     bank.combine(s + 1..2 * s + 1, y0, moments, &coef[pred], stages, ws);
                 }
-                eval_all(stages, g, scratch, None)?;
+                if let Some(p) = par.as_deref_mut() {
+                    system.nonlinear_stages(stages, g, &mut p.scratch, None);
+                } else {
+                    eval_all(stages, g, scratch, None)?;
+                }
                 if !all_finite(g) {
                     return Err(Error::NonFinite(G_NONFINITE));
                 }
@@ -1312,6 +1468,9 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                     if B::LOCAL_STAGES {
                         bank.combine(0..s, y0, moments, &coef[..s * m], props, ws);
                         new_stages.copy_from_slice(props);
+                    } else if let Some(p) = par.as_deref_mut() {
+                        let (c, helpers) = (&coef[..s * m], &mut p.helpers);
+                        bank.combine_concurrent(0..s, y0, moments, c, new_stages, ws, helpers);
                     } else {
                         bank.combine(0..s, y0, moments, &coef[..s * m], new_stages, ws);
                     }
@@ -1388,7 +1547,11 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                 if !global.is_finite() {
                     return Err(stage_fault(g, last_global));
                 }
-                eval_all(stages, g, scratch, unchanged)?;
+                if let Some(p) = par.as_deref_mut() {
+                    system.nonlinear_stages(stages, g, &mut p.scratch, unchanged);
+                } else {
+                    eval_all(stages, g, scratch, unchanged)?;
+                }
                 g_evals += s - usize::from(unchanged.is_some());
                 let converged = if PER_COMPONENT {
                     sweeps_converged_scaled(residual, previous, global, settings.tolerance)
@@ -1419,7 +1582,13 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             kernel.legendre_moments(g, moments, d);
             let (hi, rest) = tmp.split_at_mut(d);
             let (lo, ec) = rest.split_at_mut(d);
-            if settings.compensated && bank.propagate_dd(s, y0, hi, lo, ws) {
+            if let Some(p) = par {
+                let c = &coef[s * m..(s + 1) * m];
+                let comp_on = settings.compensated;
+                finish_concurrent(
+                    bank, p, ws, s, comp_on, y0, moments, c, y, last, comp, hi, lo, ec,
+                );
+            } else if settings.compensated && bank.propagate_dd(s, y0, hi, lo, ws) {
                 // y₁ = e^{hA} y₀ (double-double) + N + e^{hA} c, where N is the nonlinear part and
                 // c the rounding error of the previous y₁ (compensated summation). Rounding the
                 // f64 state the same way every period of an oscillation, and the f64 propagator,
@@ -1427,17 +1596,7 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                 last.fill(0.0);
                 bank.combine(s..s + 1, last, moments, &coef[s * m..(s + 1) * m], y, ws);
                 bank.apply(s, 0, comp, ec, ws);
-                for ((((yv, c), h), l), e) in y
-                    .iter_mut()
-                    .zip(comp.iter_mut())
-                    .zip(hi.iter())
-                    .zip(lo.iter())
-                    .zip(ec.iter())
-                {
-                    let (sum, err) = two_sum(*h, *l + *yv + *e);
-                    *yv = sum;
-                    *c = err;
-                }
+                compensated_sum(y, comp, hi, lo, ec);
             } else {
                 bank.combine(s..s + 1, y0, moments, &coef[s * m..(s + 1) * m], y, ws);
             }
