@@ -1272,17 +1272,35 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
         // One compiled step per stage solver kind and scale, so that the fixed-point sweeps in
         // the global scale (the small steppers' hot path) carry no code of the others.
         let newton = self.settings.solver != StageSolver::FixedPoint;
+        if !B::LOCAL_STAGES && self.par.is_some() {
+            return self.step_concurrent(y);
+        }
         match (newton, self.settings.scale) {
-            (false, StageScale::Global) => self.step_with::<false, false>(y),
-            (false, StageScale::PerComponent { .. }) => self.step_with::<false, true>(y),
-            (true, StageScale::Global) => self.step_with::<true, false>(y),
-            (true, StageScale::PerComponent { .. }) => self.step_with::<true, true>(y),
+            (false, StageScale::Global) => self.step_with::<false, false, false>(y),
+            (false, StageScale::PerComponent { .. }) => self.step_with::<false, true, false>(y),
+            (true, StageScale::Global) => self.step_with::<true, false, false>(y),
+            (true, StageScale::PerComponent { .. }) => self.step_with::<true, true, false>(y),
+        }
+    }
+
+    /// [`step`](Self::step) on the concurrent stage path of large systems
+    /// ([`SolverSettings::parallel_min_dim`]): compiled apart, so that the serial steps carry
+    /// none of its code.
+    #[inline(never)]
+    fn step_concurrent(&mut self, y: &mut [f64]) -> Result<StepReport> {
+        let newton = self.settings.solver != StageSolver::FixedPoint;
+        match (newton, self.settings.scale) {
+            (false, StageScale::Global) => self.step_with::<false, false, true>(y),
+            (false, StageScale::PerComponent { .. }) => self.step_with::<false, true, true>(y),
+            (true, StageScale::Global) => self.step_with::<true, false, true>(y),
+            (true, StageScale::PerComponent { .. }) => self.step_with::<true, true, true>(y),
         }
     }
 
     /// [`step`](Self::step) with Newton (`NEWTON`, else fixed-point sweeps) and the
-    /// per-component scale (`PER_COMPONENT`, else the global one), as the settings say.
-    fn step_with<const NEWTON: bool, const PER_COMPONENT: bool>(
+    /// per-component scale (`PER_COMPONENT`, else the global one), as the settings say, on the
+    /// concurrent stage path (`PAR`) or the serial one.
+    fn step_with<const NEWTON: bool, const PER_COMPONENT: bool, const PAR: bool>(
         &mut self,
         y: &mut [f64],
     ) -> Result<StepReport> {
@@ -1329,8 +1347,8 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             // rounding error; a failed step leaves no usable previous step.
             let continuing = std::mem::take(have_previous) && *last == *y;
             // The concurrent path (large d; never with fixed-size buffers, which are for small
-            // systems: then this is `None` at compile time).
-            let mut par = if B::LOCAL_STAGES {
+            // systems). `None` at compile time on the serial path.
+            let mut par = if B::LOCAL_STAGES || !PAR {
                 None
             } else {
                 par.as_deref_mut()
