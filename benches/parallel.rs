@@ -9,7 +9,9 @@
 //! `cargo bench --bench parallel -- nls2d` (the 2D NLS, 512 × 512, EC2P and EC3P),
 //! `-- nls1d` (the 1D NLS, N = 2^16), `-- threshold` (the 1D NLS from N = 2^5 to 2^14: where
 //! the concurrent path starts to pay, which sets `PARALLEL_MIN_DIM`). The steppers use the
-//! extrapolating predictor, as `ecr bench scaling` does, and h = 1/200.
+//! extrapolating predictor, as `ecr bench scaling` does, and h = 1/200. Each line also
+//! gives the machine's capacity at the time: how much work two threads did in the time one
+//! did it alone (2.00 with both cores free; on a shared machine, less).
 
 use ecr::runtime::problems::{Nls, Nls2d};
 use ecr::runtime::stepper::{EcStepper, Predictor, SolverSettings};
@@ -68,14 +70,37 @@ fn paired<S: System>(
     let (ts, tp) = (ts / steps as f64, tp / steps as f64);
     println!(
         "{label}, EC{r}P, d = {}: serial {:.3} ms/step, concurrent {:.3} ms/step, speed-up \
-         {:.2} (fastest of {rounds} interleaved runs of {steps} steps, {:.1} sweeps/step)",
+         {:.2} (fastest of {rounds} interleaved runs of {steps} steps, {:.1} sweeps/step; \
+         machine capacity {:.2})",
         y0.len(),
         ts * 1e3,
         tp * 1e3,
         ts / tp,
-        sweeps as f64 / steps as f64
+        sweeps as f64 / steps as f64,
+        capacity(5)
     );
     (ts, tp)
+}
+
+/// About 10 ms of arithmetic on one core.
+fn work() -> f64 {
+    (0..4_000_000u64).map(|i| (i as f64).sqrt()).sum()
+}
+
+/// How much work 2 threads of rayon's pool do in the time one does it alone, the fastest of
+/// `rounds` tries: 2.0 when both cores are free, less when other work holds them (the machine
+/// is shared). Printed beside each result: a speed-up can only be judged against it.
+fn capacity(rounds: usize) -> f64 {
+    let (mut one, mut two) = (f64::INFINITY, f64::INFINITY);
+    for _ in 0..rounds {
+        let t = Instant::now();
+        black_box(work());
+        one = one.min(t.elapsed().as_secs_f64());
+        let t = Instant::now();
+        black_box(rayon::join(work, work));
+        two = two.min(t.elapsed().as_secs_f64());
+    }
+    2.0 * one / two
 }
 
 fn main() {

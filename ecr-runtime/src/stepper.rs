@@ -38,6 +38,7 @@
 //! stage state local to each step, so that it stays in registers). [`EcStepper`] is the
 //! run-time-r form.
 
+use crate::concurrent::for_each_chunk;
 use crate::operator::{LinearOperator, PhiBank};
 use crate::phi::two_sum;
 use crate::storage::ensure_allocatable;
@@ -689,26 +690,66 @@ struct ParallelState<W> {
     helpers: Vec<W>,
     /// A scratch of [`System::scratch_len`] per stage, for g at the stages.
     scratch: Vec<f64>,
+    /// The kernel's ℓ_kj (k < r, j < s, at `k·s + j`), for the moments.
+    ell: Vec<f64>,
+    /// s.
+    s: usize,
+    /// As many units as `helpers`: the tasks of the moments, which need no workspace.
+    tasks: Vec<()>,
 }
 
 impl<W> ParallelState<W> {
     /// The state for a system of dimension d with scratch `scratch_len`, s stages and r
     /// moments, if d ≥ `min_dim`. Starts rayon's pool (once per process), so that steps do
     /// not allocate.
-    fn new<Bk: PhiBank<Workspace = W>>(
+    fn new<K: Kernel, Bk: PhiBank<Workspace = W>>(
+        kernel: &K,
         bank: &Bk,
         min_dim: usize,
-        s: usize,
-        r: usize,
         scratch_len: usize,
     ) -> Option<Box<Self>> {
+        let (s, r) = (kernel.s(), kernel.r());
         (bank.dim() >= min_dim).then(|| {
             let tasks = rayon::current_num_threads().clamp(2, s.max(r + 1));
+            // ℓ_kj: the moments of the unit vectors (d = 1), exact (one term is ℓ_kj · 1, the
+            // others ℓ · 0).
+            let mut ell = vec![0.0; r * s];
+            let (mut unit, mut mom) = (vec![0.0; s], vec![0.0; r]);
+            for j in 0..s {
+                unit.fill(0.0);
+                unit[j] = 1.0;
+                kernel.legendre_moments(&unit, &mut mom, 1);
+                for k in 0..r {
+                    ell[k * s + j] = mom[k];
+                }
+            }
             Box::new(ParallelState {
                 helpers: (0..tasks).map(|_| bank.workspace()).collect(),
                 scratch: vec![0.0; s * scratch_len],
+                ell,
+                s,
+                tasks: vec![(); tasks],
             })
         })
+    }
+
+    /// [`Kernel::legendre_moments`] with the moments (each in two halves where d is even)
+    /// computed concurrently: bit for bit the kernel's, whose contract fixes the arithmetic
+    /// (each sum from 0.0, terms `ℓ_kj g_j` in the order j = 0, 1, …).
+    fn moments(&mut self, g: &[f64], m: &mut [f64], d: usize) {
+        let (ell, s) = (&self.ell, self.s);
+        let parts = if d % 2 == 0 { 2 } else { 1 };
+        let len = d / parts;
+        for_each_chunk(m, len, &mut self.tasks, &|q, mk: &mut [f64], _: &mut ()| {
+            let (k, at) = (q / parts, (q % parts) * len);
+            mk.fill(0.0);
+            for j in 0..s {
+                let w = ell[k * s + j];
+                for (x, gv) in mk.iter_mut().zip(&g[j * d + at..j * d + at + len]) {
+                    *x += w * gv;
+                }
+            }
+        });
     }
 }
 
@@ -1134,10 +1175,9 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
         let buf = B::with_sizes(kernel.r(), kernel.s(), system.dim())?;
         let (bank, coef, fused, ws) = Self::build_bank(&system, &kernel, h, settings.predictor)?;
         let par = ParallelState::new(
+            &kernel,
             &bank,
             settings.parallel_min_dim,
-            kernel.s(),
-            kernel.r(),
             system.scratch_len(),
         );
         Ok(Stepper {
@@ -1201,10 +1241,9 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
         // The concurrent path's workspaces are the new bank's (the old ones go first).
         self.par = None;
         self.par = ParallelState::new(
+            &self.kernel,
             &bank,
             self.settings.parallel_min_dim,
-            self.kernel.s(),
-            self.kernel.r(),
             self.system.scratch_len(),
         );
         self.ws = ws;
@@ -1481,14 +1520,15 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                 };
                 if let Some(mats) = fused {
                     B::fused_sweep(mats, props, g, new_stages, s, d);
+                } else if let Some(p) = par.as_deref_mut() {
+                    p.moments(g, moments, d);
+                    let (c, helpers) = (&coef[..s * m], &mut p.helpers);
+                    bank.combine_concurrent(0..s, y0, moments, c, new_stages, ws, helpers);
                 } else {
                     kernel.legendre_moments(g, moments, d);
                     if B::LOCAL_STAGES {
                         bank.combine(0..s, y0, moments, &coef[..s * m], props, ws);
                         new_stages.copy_from_slice(props);
-                    } else if let Some(p) = par.as_deref_mut() {
-                        let (c, helpers) = (&coef[..s * m], &mut p.helpers);
-                        bank.combine_concurrent(0..s, y0, moments, c, new_stages, ws, helpers);
                     } else {
                         bank.combine(0..s, y0, moments, &coef[..s * m], new_stages, ws);
                     }
@@ -1597,7 +1637,11 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                     tolerance: settings.tolerance,
                 });
             }
-            kernel.legendre_moments(g, moments, d);
+            if let Some(p) = par.as_deref_mut() {
+                p.moments(g, moments, d);
+            } else {
+                kernel.legendre_moments(g, moments, d);
+            }
             let (hi, rest) = tmp.split_at_mut(d);
             let (lo, ec) = rest.split_at_mut(d);
             if let Some(p) = par {

@@ -148,3 +148,35 @@ fn new_step_size_keeps_the_paths_identical() {
         assert!(a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()));
     }
 }
+
+ecr_runtime::ecr_method!(r = 3);
+
+/// A kernel emitted by `ecr_method!` on run-time storage: its moments, which the concurrent
+/// path computes from the kernel's coefficients, agree bit for bit too (and with the run-time
+/// kernel's steps).
+#[test]
+fn macro_kernel_steps_are_bit_identical() {
+    use ecr_runtime::stepper::Stepper;
+    let p = Nls::new(1 << 10).unwrap();
+    let h = 1.0 / 200.0;
+    let settings = |min| with_threshold(SolverSettings::default(), min);
+    let mut serial: Ec3Dyn<_> =
+        Stepper::from_kernel(Ec3Kernel, p.system().unwrap(), h, settings(usize::MAX)).unwrap();
+    let mut par: Ec3Dyn<_> =
+        Stepper::from_kernel(Ec3Kernel, p.system().unwrap(), h, settings(0)).unwrap();
+    let mut run_time = EcStepper::with_nodes(p.system().unwrap(), 3, 3, h, settings(0)).unwrap();
+    let (mut a, mut b, mut c) = (p.initial_value(), p.initial_value(), p.initial_value());
+    for n in 0..10 {
+        serial.step(&mut a).unwrap();
+        par.step(&mut b).unwrap();
+        run_time.step(&mut c).unwrap();
+        assert!(
+            a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()),
+            "step {n}"
+        );
+        assert!(
+            a.iter().zip(&c).all(|(x, y)| x.to_bits() == y.to_bits()),
+            "step {n}"
+        );
+    }
+}
