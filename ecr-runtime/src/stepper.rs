@@ -292,10 +292,14 @@ pub struct SolverSettings {
     pub parallel_min_dim: usize,
 }
 
-/// The default [`SolverSettings::parallel_min_dim`]: the dimension from which the concurrent
-/// stage path is faster than the serial one for the FFT operators, measured on 2 cores (EC2P
-/// and EC3P on the 1D NLS, `cargo bench --bench parallel -- threshold`).
-pub const PARALLEL_MIN_DIM: usize = 1 << 13;
+/// The default [`SolverSettings::parallel_min_dim`], d = 2^15: from there on the concurrent
+/// stage path is the faster one, measured on 2 cores for the 1D NLS (FFT operators, h = 1/200,
+/// extrapolating predictor; `cargo bench --bench parallel -- threshold`, free-machine rounds).
+/// Speed-up serial → concurrent: EC2P 0.30, 0.72, 0.87, 0.97, 1.08, 1.26 and EC3P 0.66, 0.73,
+/// 0.94, 1.06, 1.20, 1.28 at d = 2^11 … 2^16; 1.4 at d = 2^17. Below, the hand-overs to the
+/// pool (3 per sweep and 4 more per step, each waking threads: about 20 µs, from the step
+/// times at d = 2^10) cost more than the work they share.
+pub const PARALLEL_MIN_DIM: usize = 1 << 15;
 
 impl Default for SolverSettings {
     /// Tolerance 1e−15, at most 100 sweeps, error at the limit, stages started at y₀,

@@ -52,11 +52,11 @@ fn assert_identical<S: System>(
     );
 }
 
-/// The 1D NLS with N = 2^12 (d = 8192 ≥ the default threshold): 20 steps of EC2P and EC3P,
+/// The 1D NLS with N = 2^14 (d = 32768: at the default threshold): 20 steps of EC2P and EC3P,
 /// with the constant and the extrapolating predictor, compensated and plain updates, s > r.
 #[test]
 fn nls_steps_are_bit_identical() {
-    let p = Nls::new(1 << 12).unwrap();
+    let p = Nls::new(1 << 14).unwrap();
     assert!(p.dim() >= PARALLEL_MIN_DIM);
     let y0 = p.initial_value();
     let h = 1.0 / 200.0;
