@@ -2,6 +2,7 @@
 #![deny(missing_docs)]
 
 pub mod baselines;
+mod concurrent;
 pub mod error;
 pub mod integrate;
 pub mod operator;

@@ -48,6 +48,7 @@
 //! stage state local to each step, so that it stays in registers). [`EcStepper`] is the
 //! run-time-r form.
 
+use crate::concurrent::for_each_chunk;
 use crate::operator::{LinearOperator, PhiBank};
 use crate::phi::two_sum;
 use crate::storage::ensure_allocatable;
@@ -335,7 +336,24 @@ pub struct SolverSettings {
     /// ([`PhiBank::propagate_dd`]; see the module docs). On by default: it removes the
     /// round-off drift of the energy in long runs for a few more operations per step.
     pub compensated: bool,
+    /// Systems of this dimension d or more run the independent work of each step's stages
+    /// concurrently on rayon's thread pool: g at the s stages ([`System::nonlinear_stages`],
+    /// concurrent where the system allows it), the bank's `combine` over the stage nodes
+    /// ([`PhiBank::combine_concurrent`]: for the FFT operators the inputs' transforms, then the
+    /// nodes' inverse transforms) and the end of the step ([`PhiBank::join`]). The results are
+    /// bit for bit those of the serial path. Default [`PARALLEL_MIN_DIM`], measured;
+    /// `usize::MAX`: always serial. Smaller systems take the serial path unchanged.
+    pub parallel_min_dim: usize,
 }
+
+/// The default [`SolverSettings::parallel_min_dim`], d = 2^15: from there on the concurrent
+/// stage path is the faster one, measured on 2 cores for the 1D NLS (FFT operators, h = 1/200,
+/// extrapolating predictor; `cargo bench --bench parallel -- threshold`, free-machine rounds).
+/// Speed-up serial → concurrent: EC2P 0.30, 0.72, 0.87, 0.97, 1.08, 1.26 and EC3P 0.66, 0.73,
+/// 0.94, 1.06, 1.20, 1.28 at d = 2^11 … 2^16; 1.4 at d = 2^17. Below, the hand-overs to the
+/// pool (3 per sweep and 4 more per step, each waking threads: about 20 µs, from the step
+/// times at d = 2^10) cost more than the work they share.
+pub const PARALLEL_MIN_DIM: usize = 1 << 15;
 
 impl Default for SolverSettings {
     /// Tolerance 1e−15, at most 100 sweeps, error at the limit, stages started from the
@@ -350,6 +368,7 @@ impl Default for SolverSettings {
             solver: StageSolver::FixedPoint,
             scale: StageScale::Global,
             compensated: true,
+            parallel_min_dim: PARALLEL_MIN_DIM,
         }
     }
 }
@@ -406,6 +425,7 @@ impl SolverSettings {
             solver: StageSolver::FixedPoint,
             scale: StageScale::Global,
             compensated: true,
+            parallel_min_dim: PARALLEL_MIN_DIM,
         }
     }
 }
@@ -736,6 +756,147 @@ pub struct Stepper<K: Kernel, S: System, B: Buffers> {
     /// The largest ratio of consecutive stage updates in the last completed step (1 when there
     /// is none): the floor of the contraction estimate of [`y1_converged`].
     theta: f64,
+    /// The memory of the concurrent stage path, for d ≥
+    /// [`SolverSettings::parallel_min_dim`] (else `None`: the serial path).
+    par: Option<Box<ParallelState<BankWorkspace<S>>>>,
+}
+
+/// The workspace of a system's kernel bank.
+type BankWorkspace<S> = <<<S as System>::Op as LinearOperator>::Bank as PhiBank>::Workspace;
+
+/// What the concurrent stage path ([`SolverSettings::parallel_min_dim`]) uses besides the
+/// serial path's buffers, allocated with the bank (never per step).
+struct ParallelState<W> {
+    /// One workspace per concurrent task of the bank's operations: as many as rayon's pool has
+    /// threads, at least 2 (the end of a step runs two tasks) and at most max(s, r + 1) (the
+    /// pieces of a `combine` over the stage nodes).
+    helpers: Vec<W>,
+    /// A scratch of [`System::scratch_len`] per stage, for g at the stages.
+    scratch: Vec<f64>,
+    /// The kernel's ℓ_kj (k < r, j < s, at `k·s + j`), for the moments.
+    ell: Vec<f64>,
+    /// s.
+    s: usize,
+    /// As many units as `helpers`: the tasks of the moments, which need no workspace.
+    tasks: Vec<()>,
+}
+
+impl<W> ParallelState<W> {
+    /// The state for a system of dimension d with scratch `scratch_len`, s stages and r
+    /// moments, if d ≥ `min_dim`. Starts rayon's pool (once per process), so that steps do
+    /// not allocate.
+    fn new<K: Kernel, Bk: PhiBank<Workspace = W>>(
+        kernel: &K,
+        bank: &Bk,
+        min_dim: usize,
+        scratch_len: usize,
+    ) -> Option<Box<Self>> {
+        let (s, r) = (kernel.s(), kernel.r());
+        (bank.dim() >= min_dim).then(|| {
+            let tasks = rayon::current_num_threads().clamp(2, s.max(r + 1));
+            // ℓ_kj: the moments of the unit vectors (d = 1), exact (one term is ℓ_kj · 1, the
+            // others ℓ · 0).
+            let mut ell = vec![0.0; r * s];
+            let (mut unit, mut mom) = (vec![0.0; s], vec![0.0; r]);
+            for j in 0..s {
+                unit.fill(0.0);
+                unit[j] = 1.0;
+                kernel.legendre_moments(&unit, &mut mom, 1);
+                for k in 0..r {
+                    ell[k * s + j] = mom[k];
+                }
+            }
+            Box::new(ParallelState {
+                helpers: (0..tasks).map(|_| bank.workspace()).collect(),
+                scratch: vec![0.0; s * scratch_len],
+                ell,
+                s,
+                tasks: vec![(); tasks],
+            })
+        })
+    }
+
+    /// [`Kernel::legendre_moments`] with the moments (each in two halves where d is even)
+    /// computed concurrently: bit for bit the kernel's, whose contract fixes the arithmetic
+    /// (each sum from 0.0, terms `ℓ_kj g_j` in the order j = 0, 1, …).
+    fn moments(&mut self, g: &[f64], m: &mut [f64], d: usize) {
+        let (ell, s) = (&self.ell, self.s);
+        let parts = if d % 2 == 0 { 2 } else { 1 };
+        let len = d / parts;
+        for_each_chunk(m, len, &mut self.tasks, &|q, mk: &mut [f64], _: &mut ()| {
+            let (k, at) = (q / parts, (q % parts) * len);
+            mk.fill(0.0);
+            for j in 0..s {
+                let w = ell[k * s + j];
+                for (x, gv) in mk.iter_mut().zip(&g[j * d + at..j * d + at + len]) {
+                    *x += w * gv;
+                }
+            }
+        });
+    }
+}
+
+/// The end of a step on the concurrent path: y₁ as the serial path computes it (the
+/// compensated update where `compensated` and the bank carries its propagator, else one
+/// `combine` at τ = 1), with the independent bank operations run concurrently: e^{hA} y₀ in
+/// double-double and then e^{hA} c on one task, the nonlinear part on the other.
+#[allow(clippy::too_many_arguments)]
+fn finish_concurrent<Bk: PhiBank>(
+    bank: &Bk,
+    par: &mut ParallelState<Bk::Workspace>,
+    ws: &mut Bk::Workspace,
+    s: usize,
+    compensated: bool,
+    y0: &[f64],
+    moments: &[f64],
+    coef: &[f64],
+    y: &mut [f64],
+    last: &mut [f64],
+    comp: &mut [f64],
+    hi: &mut [f64],
+    lo: &mut [f64],
+    ec: &mut [f64],
+) {
+    if compensated {
+        last.fill(0.0);
+        let (wa, wb) = par.helpers.split_at_mut(1);
+        let comp_in: &[f64] = comp;
+        let last: &[f64] = last;
+        let (carried, ()) = bank.join(
+            &mut wa[0],
+            &mut wb[0],
+            |bk, w| {
+                let carried = bk.propagate_dd(s, y0, hi, lo, w);
+                if carried {
+                    bk.apply(s, 0, comp_in, ec, w);
+                }
+                carried
+            },
+            |bk, w| bk.combine(s..s + 1, last, moments, coef, y, w),
+        );
+        if carried {
+            compensated_sum(y, comp, hi, lo, ec);
+            return;
+        }
+    }
+    bank.combine_concurrent(s..s + 1, y0, moments, coef, y, ws, &mut par.helpers);
+}
+
+/// y₁ = hi + lo + N + e (double-double propagated state, nonlinear part N in `y`, propagated
+/// rounding error e), rounded to `y`, its rounding error to `comp`.
+#[inline(always)]
+fn compensated_sum(y: &mut [f64], comp: &mut [f64], hi: &[f64], lo: &[f64], ec: &[f64]) {
+    for ((((yv, c), h), l), e) in y
+        .iter_mut()
+        .zip(comp.iter_mut())
+        .zip(hi.iter())
+        .zip(lo.iter())
+        .zip(ec.iter())
+    {
+        let (sum, err) = two_sum(*h, *l + *yv + *e);
+        *yv = sum;
+        *c = err;
+    }
 }
 
 /// The most numbers the Newton iteration holds at once: the stage matrices and the Newton
@@ -1205,6 +1366,12 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
         }
         let buf = B::with_sizes(kernel.r(), kernel.s(), system.dim())?;
         let (bank, coef, fused, ws) = Self::build_bank(&system, &kernel, h, settings.predictor)?;
+        let par = ParallelState::new(
+            &kernel,
+            &bank,
+            settings.parallel_min_dim,
+            system.scratch_len(),
+        );
         Ok(Stepper {
             scratch: vec![0.0; system.scratch_len()],
             kernel,
@@ -1219,6 +1386,7 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             have_previous: false,
             newton: None,
             theta: 1.0,
+            par,
         })
     }
 
@@ -1265,6 +1433,14 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
         }
         let (bank, coef, fused, ws) =
             Self::build_bank(&self.system, &self.kernel, h, self.settings.predictor)?;
+        // The concurrent path's workspaces are the new bank's (the old ones go first).
+        self.par = None;
+        self.par = ParallelState::new(
+            &self.kernel,
+            &bank,
+            self.settings.parallel_min_dim,
+            self.system.scratch_len(),
+        );
         self.ws = ws;
         self.bank = bank;
         self.coef = coef;
@@ -1335,17 +1511,35 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
         // One compiled step per stage solver kind and scale, so that the fixed-point sweeps in
         // the global scale (the small steppers' hot path) carry no code of the others.
         let newton = self.settings.solver != StageSolver::FixedPoint;
+        if !B::LOCAL_STAGES && self.par.is_some() {
+            return self.step_concurrent(y);
+        }
         match (newton, self.settings.scale) {
-            (false, StageScale::Global) => self.step_with::<false, false>(y),
-            (false, StageScale::PerComponent { .. }) => self.step_with::<false, true>(y),
-            (true, StageScale::Global) => self.step_with::<true, false>(y),
-            (true, StageScale::PerComponent { .. }) => self.step_with::<true, true>(y),
+            (false, StageScale::Global) => self.step_with::<false, false, false>(y),
+            (false, StageScale::PerComponent { .. }) => self.step_with::<false, true, false>(y),
+            (true, StageScale::Global) => self.step_with::<true, false, false>(y),
+            (true, StageScale::PerComponent { .. }) => self.step_with::<true, true, false>(y),
+        }
+    }
+
+    /// [`step`](Self::step) on the concurrent stage path of large systems
+    /// ([`SolverSettings::parallel_min_dim`]): compiled apart, so that the serial steps carry
+    /// none of its code.
+    #[inline(never)]
+    fn step_concurrent(&mut self, y: &mut [f64]) -> Result<StepReport> {
+        let newton = self.settings.solver != StageSolver::FixedPoint;
+        match (newton, self.settings.scale) {
+            (false, StageScale::Global) => self.step_with::<false, false, true>(y),
+            (false, StageScale::PerComponent { .. }) => self.step_with::<false, true, true>(y),
+            (true, StageScale::Global) => self.step_with::<true, false, true>(y),
+            (true, StageScale::PerComponent { .. }) => self.step_with::<true, true, true>(y),
         }
     }
 
     /// [`step`](Self::step) with Newton (`NEWTON`, else fixed-point sweeps) and the
-    /// per-component scale (`PER_COMPONENT`, else the global one), as the settings say.
-    fn step_with<const NEWTON: bool, const PER_COMPONENT: bool>(
+    /// per-component scale (`PER_COMPONENT`, else the global one), as the settings say, on the
+    /// concurrent stage path (`PAR`) or the serial one.
+    fn step_with<const NEWTON: bool, const PER_COMPONENT: bool, const PAR: bool>(
         &mut self,
         y: &mut [f64],
     ) -> Result<StepReport> {
@@ -1375,6 +1569,7 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             have_previous,
             newton,
             theta,
+            par,
             ..
         } = self;
         buf.with_parts(|parts| {
@@ -1392,6 +1587,13 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             // Only a completed step that ended exactly at y may seed the predictor or hand on its
             // rounding error; a failed step leaves no usable previous step.
             let continuing = std::mem::take(have_previous) && *last == *y;
+            // The concurrent path (large d; never with fixed-size buffers, which are for small
+            // systems). `None` at compile time on the serial path.
+            let mut par = if B::LOCAL_STAGES || !PAR {
+                None
+            } else {
+                par.as_deref_mut()
+            };
             if !continuing {
                 comp.fill(0.0);
             }
@@ -1464,10 +1666,25 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                 } else if B::LOCAL_STAGES {
                     bank.combine(s + 1..2 * s + 1, y0, moments, &coef[pred], props, ws);
                     stages.copy_from_slice(props);
+                } else if let Some(p) = par.as_deref_mut() {
+                    let c = &coef[pred];
+                    bank.combine_concurrent(
+                        s + 1..2 * s + 1,
+                        y0,
+                        moments,
+                        c,
+                        stages,
+                        ws,
+                        &mut p.helpers,
+                    );
                 } else {
                     bank.combine(s + 1..2 * s + 1, y0, moments, &coef[pred], stages, ws);
                 }
-                eval_all(stages, g, scratch, None)?;
+                if let Some(p) = par.as_deref_mut() {
+                    system.nonlinear_stages(stages, g, &mut p.scratch, None);
+                } else {
+                    eval_all(stages, g, scratch, None)?;
+                }
                 if !all_finite(g) {
                     return Err(Error::NonFinite(G_NONFINITE));
                 }
@@ -1510,6 +1727,10 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                 };
                 if let Some(f) = fused {
                     gemv_cm(&f.stage, s * d, [g, &[]], Some(props), new_stages);
+                } else if let Some(p) = par.as_deref_mut() {
+                    p.moments(g, moments, d);
+                    let (c, helpers) = (&coef[..s * m], &mut p.helpers);
+                    bank.combine_concurrent(0..s, y0, moments, c, new_stages, ws, helpers);
                 } else {
                     kernel.legendre_moments(g, moments, d);
                     if B::LOCAL_STAGES {
@@ -1591,7 +1812,11 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                 if !global.is_finite() {
                     return Err(stage_fault(g, last_global));
                 }
-                eval_all(stages, g, scratch, unchanged)?;
+                if let Some(p) = par.as_deref_mut() {
+                    system.nonlinear_stages(stages, g, &mut p.scratch, unchanged);
+                } else {
+                    eval_all(stages, g, scratch, unchanged)?;
+                }
                 g_evals += s - usize::from(unchanged.is_some());
                 if previous.is_finite() {
                     theta_step = theta_step.max(residual / previous);
@@ -1623,10 +1848,20 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                     tolerance: settings.tolerance,
                 });
             }
-            kernel.legendre_moments(g, moments, d);
+            if let Some(p) = par.as_deref_mut() {
+                p.moments(g, moments, d);
+            } else {
+                kernel.legendre_moments(g, moments, d);
+            }
             let (hi, rest) = tmp.split_at_mut(d);
             let (lo, ec) = rest.split_at_mut(d);
-            if settings.compensated && bank.propagate_dd(s, y0, hi, lo, ws) {
+            if let Some(p) = par {
+                let c = &coef[s * m..(s + 1) * m];
+                let comp_on = settings.compensated;
+                finish_concurrent(
+                    bank, p, ws, s, comp_on, y0, moments, c, y, last, comp, hi, lo, ec,
+                );
+            } else if settings.compensated && bank.propagate_dd(s, y0, hi, lo, ws) {
                 // y₁ = e^{hA} y₀ (double-double) + N + e^{hA} c, where N is the nonlinear part and
                 // c the rounding error of the previous y₁ (compensated summation). Rounding the
                 // f64 state the same way every period of an oscillation, and the f64 propagator,
@@ -1640,17 +1875,7 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                     bank.combine(s..s + 1, last, moments, &coef[s * m..(s + 1) * m], y, ws);
                     bank.apply(s, 0, comp, ec, ws);
                 }
-                for ((((yv, c), h), l), e) in y
-                    .iter_mut()
-                    .zip(comp.iter_mut())
-                    .zip(hi.iter())
-                    .zip(lo.iter())
-                    .zip(ec.iter())
-                {
-                    let (sum, err) = two_sum(*h, *l + *yv + *e);
-                    *yv = sum;
-                    *c = err;
-                }
+                compensated_sum(y, comp, hi, lo, ec);
             } else if let Some(f) = fused {
                 gemv_cm(&f.end, d, [y0, moments], None, y);
             } else {

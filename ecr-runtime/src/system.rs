@@ -27,6 +27,33 @@ pub trait System {
     fn scratch_len(&self) -> usize {
         0
     }
+    /// g at several states: `ys` holds k states of length d one after another, `out` receives
+    /// their k values of g, and block `skip` of `out` is left as it is (g is already there).
+    /// `scratch` has `k · scratch_len()` entries, the j-th `scratch_len()` of them for state j.
+    /// The ECrP stepper calls it for the s stages of each sweep of a large system (d ≥
+    /// [`SolverSettings::parallel_min_dim`](crate::stepper::SolverSettings::parallel_min_dim));
+    /// each state's g must be what [`nonlinear`](System::nonlinear) gives.
+    ///
+    /// The default evaluates the states one after another. A system that may be shared
+    /// between threads (`Sync`) can have them evaluated concurrently: override this with a
+    /// call of [`nonlinear_concurrent`] (the NLS systems of [`problems`](crate::problems) do),
+    /// or wrap the system in [`Concurrent`]. It is the system's choice because the steppers
+    /// cannot ask for `Sync` without rejecting systems that are not (stable Rust cannot
+    /// specialise on it).
+    fn nonlinear_stages(
+        &self,
+        ys: &[f64],
+        out: &mut [f64],
+        scratch: &mut [f64],
+        skip: Option<usize>,
+    ) {
+        let (d, sl) = (self.dim(), self.scratch_len());
+        for (j, (y, o)) in ys.chunks_exact(d).zip(out.chunks_exact_mut(d)).enumerate() {
+            if skip != Some(j) {
+                self.nonlinear(y, o, &mut scratch[j * sl..(j + 1) * sl]);
+            }
+        }
+    }
     /// The energy H(y) (first integral or Lyapunov function), if known.
     fn energy(&self, _y: &[f64]) -> Option<f64> {
         None
@@ -77,11 +104,104 @@ impl<S: System + ?Sized> System for &S {
     fn scratch_len(&self) -> usize {
         (**self).scratch_len()
     }
+    fn nonlinear_stages(
+        &self,
+        ys: &[f64],
+        out: &mut [f64],
+        scratch: &mut [f64],
+        skip: Option<usize>,
+    ) {
+        (**self).nonlinear_stages(ys, out, scratch, skip)
+    }
     fn energy(&self, y: &[f64]) -> Option<f64> {
         (**self).energy(y)
     }
     fn jacobian(&self, y: &[f64], jac: &mut DMatrix<f64>, scratch: &mut [f64]) -> bool {
         (**self).jacobian(y, jac, scratch)
+    }
+}
+
+/// [`System::nonlinear_stages`] with the states evaluated concurrently on rayon's thread pool,
+/// one task per state (each by [`System::nonlinear`], so the values are those of the serial
+/// evaluation bit for bit). For a `Sync` system's override of `nonlinear_stages`:
+///
+/// ```
+/// use ecr_runtime::operator::Diagonal;
+/// use ecr_runtime::system::{System, nonlinear_concurrent};
+///
+/// struct Cubic(Diagonal);
+///
+/// impl System for Cubic {
+///     type Op = Diagonal;
+///     fn linear(&self) -> &Diagonal {
+///         &self.0
+///     }
+///     fn nonlinear(&self, y: &[f64], out: &mut [f64], _scratch: &mut [f64]) {
+///         for (o, v) in out.iter_mut().zip(y) {
+///             *o = -v * v * v;
+///         }
+///     }
+///     fn nonlinear_stages(&self, ys: &[f64], out: &mut [f64], sc: &mut [f64], skip: Option<usize>) {
+///         nonlinear_concurrent(self, ys, out, sc, skip)
+///     }
+/// }
+/// # let sys = Cubic(Diagonal::new(vec![-1.0; 3]).unwrap());
+/// # let mut out = [0.0; 6];
+/// # sys.nonlinear_stages(&[1.0, 2.0, 3.0, 4.0, 5.0, 6.0], &mut out, &mut [], None);
+/// # assert_eq!(out, [-1.0, -8.0, -27.0, -64.0, -125.0, -216.0]);
+/// ```
+///
+/// # Panics
+/// If `ys`, `out` or `scratch` are shorter than the states in `out` need.
+pub fn nonlinear_concurrent<S: System + Sync + ?Sized>(
+    system: &S,
+    ys: &[f64],
+    out: &mut [f64],
+    scratch: &mut [f64],
+    skip: Option<usize>,
+) {
+    let (d, sl) = (system.dim(), system.scratch_len());
+    crate::concurrent::for_each_block(out, d, scratch, sl, &|j, o, sc| {
+        if skip != Some(j) {
+            system.nonlinear(&ys[j * d..(j + 1) * d], o, sc);
+        }
+    });
+}
+
+/// Any `Sync` system with its g evaluated at the stages of a sweep concurrently
+/// ([`nonlinear_concurrent`]), e.g. a [`Semilinear`] with a `Sync` closure: otherwise the same
+/// system (every other method forwards to it).
+#[derive(Clone, Debug)]
+pub struct Concurrent<S>(pub S);
+
+impl<S: System + Sync> System for Concurrent<S> {
+    type Op = S::Op;
+    fn dim(&self) -> usize {
+        self.0.dim()
+    }
+    fn linear(&self) -> &Self::Op {
+        self.0.linear()
+    }
+    fn nonlinear(&self, y: &[f64], out: &mut [f64], scratch: &mut [f64]) {
+        self.0.nonlinear(y, out, scratch)
+    }
+    fn scratch_len(&self) -> usize {
+        self.0.scratch_len()
+    }
+    fn nonlinear_stages(
+        &self,
+        ys: &[f64],
+        out: &mut [f64],
+        scratch: &mut [f64],
+        skip: Option<usize>,
+    ) {
+        nonlinear_concurrent(&self.0, ys, out, scratch, skip)
+    }
+    fn energy(&self, y: &[f64]) -> Option<f64> {
+        self.0.energy(y)
+    }
+    fn jacobian(&self, y: &[f64], jac: &mut DMatrix<f64>, scratch: &mut [f64]) -> bool {
+        self.0.jacobian(y, jac, scratch)
     }
 }
 

@@ -6,7 +6,7 @@ use ecr_runtime::Error;
 use ecr_runtime::problems::{Duffing, Fpu};
 use ecr_runtime::second_order::TcStepper;
 use ecr_runtime::stepper::{
-    EcStepper, Predictor, SolverSettings, StageScale, StageSolver, SweepLimit,
+    EcStepper, PARALLEL_MIN_DIM, Predictor, SolverSettings, StageScale, StageSolver, SweepLimit,
 };
 use proptest::prelude::*;
 use proptest::test_runner::{Config as ProptestConfig, RngSeed};
@@ -54,9 +54,10 @@ fn settings() -> impl Strategy<Value = SolverSettings> {
         any::<bool>(),
         0usize..3,
         prop::option::of(any_f64()),
+        any::<bool>(),
     )
         .prop_map(
-            |(tolerance, max_sweeps, accept, extrapolate, solver, atol)| SolverSettings {
+            |(tolerance, max_sweeps, accept, extrapolate, solver, atol, parallel)| SolverSettings {
                 tolerance,
                 max_sweeps,
                 on_limit: if accept {
@@ -76,6 +77,8 @@ fn settings() -> impl Strategy<Value = SolverSettings> {
                 ][solver],
                 scale: atol.map_or(StageScale::Global, |atol| StageScale::PerComponent { atol }),
                 compensated: !accept,
+                // The concurrent stage path for any d, or the default.
+                parallel_min_dim: if parallel { 0 } else { PARALLEL_MIN_DIM },
             },
         )
 }

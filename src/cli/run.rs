@@ -5,7 +5,7 @@ use clap::{Args, ValueEnum};
 use ecr_runtime::integrate::{IntegrateOptions, Integrator, Report, integrate};
 use ecr_runtime::problems::{Duffing, Fpu, Nls, Wind};
 use ecr_runtime::second_order::TcStepper;
-use ecr_runtime::stepper::{EcStepper, Predictor, SolverSettings, StageSolver};
+use ecr_runtime::stepper::{EcStepper, PARALLEL_MIN_DIM, Predictor, SolverSettings, StageSolver};
 use serde_json::{Value, json};
 use std::io::{IsTerminal, Write};
 use std::sync::Once;
@@ -332,8 +332,10 @@ fn solver_settings(args: &RunArgs) -> SolverSettings {
 /// FFT plans, eigenvalues and scratch, y, and later the JSON report (measured, as the smallest
 /// `ulimit -v` a run passes, for the NLS with N = 2²⁰: 135 bytes for N a power of two, 250 for
 /// N = 2p with p prime, which rustfft transforms by Rader's or Bluestein's algorithm). With
-/// --newton, the Newton matrices (2s²d² + 2d² numbers). r and s are clamped to the tables'
-/// range: larger ones are refused later with their own message.
+/// --newton, the Newton matrices (2s²d² + 2d² numbers). From d = `PARALLEL_MIN_DIM` on, the
+/// workspaces of the concurrent stage path: at most max(s, r + 1), each the spectra of r + 1
+/// inputs, a buffer and the FFT scratch (r + 3 complex numbers per mode). r and s are clamped
+/// to the tables' range: larger ones are refused later with their own message.
 fn memory_estimate(args: &RunArgs) -> f64 {
     const BASE: f64 = 32.0 * 1024.0 * 1024.0;
     let d = match args.problem {
@@ -348,7 +350,12 @@ fn memory_estimate(args: &RunArgs) -> f64 {
     } else {
         s + 1.0
     };
-    let per_component = 8.0 * (4.0 * s + r + 6.0) + 8.0 * taus * (r + 1.0) + 320.0;
+    let helpers = if d >= PARALLEL_MIN_DIM as f64 {
+        s.max(r + 1.0) * 8.0 * (r + 3.0)
+    } else {
+        0.0
+    };
+    let per_component = 8.0 * (4.0 * s + r + 6.0) + 8.0 * taus * (r + 1.0) + 320.0 + helpers;
     let newton = if args.newton {
         16.0 * (s * s + 1.0) * d * d
     } else {

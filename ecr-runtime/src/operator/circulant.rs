@@ -12,6 +12,7 @@ use super::{
     Distinct, LinearOperator, NodeFunctions, PhiBank, apply_shape, check_bank_args,
     check_bank_values, combine_shape,
 };
+use crate::concurrent::{for_each_chunk, in_pool};
 use crate::phi::{cexp_dd, two_sum};
 use crate::{Error, Result};
 
@@ -362,6 +363,38 @@ pub(super) fn spectral_block(
     }
 }
 
+impl<B: SpectralBasis> SpectralBank<B> {
+    /// `s` = the spectrum of the real input `x` (a stage of [`combine`](PhiBank::combine)).
+    #[inline]
+    fn input_spectrum(&self, x: &[f64], s: &mut [Complex64], scratch: &mut B::Scratch) {
+        for (sv, xv) in s.iter_mut().zip(x) {
+            *sv = Complex64::new(*xv, 0.0);
+        }
+        self.basis.forward(s, scratch);
+    }
+
+    /// Output block `o` of node `i` from the inputs' spectra `spec` and the block's
+    /// coefficients `coef` (a stage of [`combine`](PhiBank::combine)).
+    #[inline]
+    fn output_block(
+        &self,
+        i: usize,
+        spec: &[Complex64],
+        coef: &[f64],
+        o: &mut [f64],
+        buf: &mut [Complex64],
+        scratch: &mut B::Scratch,
+    ) {
+        let stride = (self.p + 1) * self.basis.dim();
+        let f = &self.phis[i * stride..(i + 1) * stride];
+        spectral_block(buf, f, spec, coef);
+        self.basis.inverse(buf, scratch);
+        for (ov, b) in o.iter_mut().zip(buf.iter()) {
+            *ov = b.re;
+        }
+    }
+}
+
 impl<B: SpectralBasis> PhiBank for SpectralBank<B> {
     type Workspace = SpectralWorkspace<B::Scratch>;
 
@@ -399,20 +432,61 @@ impl<B: SpectralBasis> PhiBank for SpectralBank<B> {
         }
         let inputs = std::iter::once(y0).chain(g.chunks_exact(n));
         for (s, x) in ws.spec.chunks_exact_mut(n).zip(inputs) {
-            for (sv, xv) in s.iter_mut().zip(x) {
-                *sv = Complex64::new(*xv, 0.0);
-            }
-            self.basis.forward(s, &mut ws.scratch);
+            self.input_spectrum(x, s, &mut ws.scratch);
         }
-        let stride = (self.p + 1) * n;
         for ((j, i), o) in indices.enumerate().zip(out.chunks_exact_mut(n)) {
-            let f = &self.phis[i * stride..(i + 1) * stride];
-            spectral_block(&mut ws.buf, f, &ws.spec, &coef[j * m..(j + 1) * m]);
-            self.basis.inverse(&mut ws.buf, &mut ws.scratch);
-            for (ov, b) in o.iter_mut().zip(&ws.buf) {
-                *ov = b.re;
-            }
+            let c = &coef[j * m..(j + 1) * m];
+            self.output_block(i, &ws.spec, c, o, &mut ws.buf, &mut ws.scratch);
         }
+    }
+
+    /// The inputs' transforms concurrently (one group per helper, into `ws`), then the output
+    /// blocks (one group per helper); each by the code of [`combine`](PhiBank::combine).
+    fn combine_concurrent(
+        &self,
+        indices: Range<usize>,
+        y0: &[f64],
+        g: &[f64],
+        coef: &[f64],
+        out: &mut [f64],
+        ws: &mut Self::Workspace,
+        helpers: &mut [Self::Workspace],
+    ) {
+        if helpers.is_empty() {
+            return self.combine(indices, y0, g, coef, out, ws);
+        }
+        let n = self.basis.dim();
+        let m = combine_shape(n, self.len, self.p, &indices, y0, g, coef, out);
+        if indices.is_empty() {
+            return;
+        }
+        let input = |k: usize| if k == 0 { y0 } else { &g[(k - 1) * n..k * n] };
+        in_pool(|| {
+            for_each_chunk(&mut ws.spec[..(m + 1) * n], n, helpers, &|k, s, w| {
+                self.input_spectrum(input(k), s, &mut w.scratch)
+            });
+            let spec = &ws.spec;
+            for_each_chunk(out, n, helpers, &|j, o, w| {
+                let c = &coef[j * m..(j + 1) * m];
+                self.output_block(indices.start + j, spec, c, o, &mut w.buf, &mut w.scratch);
+            });
+        });
+    }
+
+    fn join<RA, RB, A, B2>(
+        &self,
+        wa: &mut Self::Workspace,
+        wb: &mut Self::Workspace,
+        a: A,
+        b: B2,
+    ) -> (RA, RB)
+    where
+        RA: Send,
+        RB: Send,
+        A: FnOnce(&Self, &mut Self::Workspace) -> RA + Send,
+        B2: FnOnce(&Self, &mut Self::Workspace) -> RB + Send,
+    {
+        rayon::join(|| a(self, wa), || b(self, wb))
     }
 
     /// `y0 + V ((e^{hΛ} − I) V⁻¹ y0)`: the increment through f64 transforms, added to y0

@@ -336,6 +336,54 @@ pub trait PhiBank {
         ws: &mut Self::Workspace,
     );
 
+    /// [`combine`](Self::combine) with its independent parts run concurrently on rayon's thread
+    /// pool where the bank can (the FFT banks: the transforms of the inputs, then the output
+    /// blocks, each group on a workspace of `helpers`), bit for bit the same numbers: each part
+    /// is computed by the same code as in `combine`, only the schedule differs. `ws` is the
+    /// workspace `combine` would use (the FFT banks keep the inputs' spectra in it), `helpers`
+    /// one workspace per concurrent task. The default, for banks whose `combine` is cheap or
+    /// that cannot be shared between threads, is `combine` with `ws`. Does not allocate (once
+    /// rayon's pool has started).
+    ///
+    /// # Panics
+    /// As [`combine`](Self::combine).
+    #[allow(clippy::too_many_arguments)]
+    fn combine_concurrent(
+        &self,
+        indices: Range<usize>,
+        y0: &[f64],
+        g: &[f64],
+        coef: &[f64],
+        out: &mut [f64],
+        ws: &mut Self::Workspace,
+        helpers: &mut [Self::Workspace],
+    ) {
+        let _ = helpers;
+        self.combine(indices, y0, g, coef, out, ws);
+    }
+
+    /// Calls `a(self, wa)` and `b(self, wb)` and returns both results: concurrently (rayon's
+    /// `join`) where the bank may be shared between threads and its operations are costly (the
+    /// FFT banks), otherwise (the default) one after the other. The ECrP stepper runs
+    /// independent bank operations of a large system's step through it (see
+    /// [`SolverSettings::parallel_min_dim`](crate::stepper::SolverSettings::parallel_min_dim)).
+    fn join<RA, RB, A, B>(
+        &self,
+        wa: &mut Self::Workspace,
+        wb: &mut Self::Workspace,
+        a: A,
+        b: B,
+    ) -> (RA, RB)
+    where
+        Self: Sized,
+        RA: Send,
+        RB: Send,
+        A: FnOnce(&Self, &mut Self::Workspace) -> RA + Send,
+        B: FnOnce(&Self, &mut Self::Workspace) -> RB + Send,
+    {
+        (a(self, wa), b(self, wb))
+    }
+
     /// Checks the arguments of [`combine`](Self::combine) without computing anything and
     /// returns `m = g.len()/d`. Does not allocate unless it returns an error.
     ///

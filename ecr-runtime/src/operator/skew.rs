@@ -9,12 +9,18 @@ use super::{
     Distinct, LinearOperator, NodeFunctions, PhiBank, apply_shape, check_bank_args, combine_shape,
 };
 use crate::Result;
+use crate::concurrent::{for_each_chunk, in_pool};
 
 /// A unitary change of basis `V` acting on complex vectors of length n, in which a
 /// [`SkewGenerator`] is diagonal.
-pub trait SpectralBasis: Clone {
+///
+/// `Sync`, with scratch that can be sent to another thread: the banks built on a basis run
+/// their transforms concurrently for large systems
+/// ([`PhiBank::combine_concurrent`](super::PhiBank::combine_concurrent)). A basis is an
+/// immutable plan; the built-in ones are.
+pub trait SpectralBasis: Clone + Sync {
     /// Scratch memory for one transform.
-    type Scratch;
+    type Scratch: Send;
 
     /// The length n.
     fn dim(&self) -> usize;
@@ -164,6 +170,43 @@ impl<C: SkewGenerator> SkewPair<C> {
     }
 }
 
+impl<B: SpectralBasis> SkewPairBank<B> {
+    /// `s` = the spectrum of `u = p + iq` for the input `x = (p, q)` (a stage of
+    /// [`combine`](PhiBank::combine)).
+    #[inline]
+    fn input_spectrum(&self, x: &[f64], s: &mut [Complex64], scratch: &mut B::Scratch) {
+        let (xp, xq) = x.split_at(self.n);
+        for ((sv, a), b) in s.iter_mut().zip(xp).zip(xq) {
+            *sv = Complex64::new(*a, *b);
+        }
+        self.basis.forward(s, scratch);
+    }
+
+    /// Output block `o = (p, q)` of node `i` from the inputs' spectra `spec` and the block's
+    /// coefficients `coef` (a stage of [`combine`](PhiBank::combine)).
+    #[inline]
+    fn output_block(
+        &self,
+        i: usize,
+        spec: &[Complex64],
+        coef: &[f64],
+        o: &mut [f64],
+        buf: &mut [Complex64],
+        scratch: &mut B::Scratch,
+    ) {
+        let n = self.n;
+        let stride = (self.p + 1) * n;
+        let f = &self.phis[i * stride..(i + 1) * stride];
+        spectral_block(buf, f, spec, coef);
+        self.basis.inverse(buf, scratch);
+        let (op, oq) = o.split_at_mut(n);
+        for ((a, b), w) in op.iter_mut().zip(oq.iter_mut()).zip(buf.iter()) {
+            *a = w.re;
+            *b = w.im;
+        }
+    }
+}
+
 impl<B: SpectralBasis> PhiBank for SkewPairBank<B> {
     type Workspace = SkewPairWorkspace<B::Scratch>;
 
@@ -200,23 +243,67 @@ impl<B: SpectralBasis> PhiBank for SkewPairBank<B> {
         }
         let inputs = std::iter::once(y0).chain(g.chunks_exact(2 * n));
         for (s, x) in ws.spec.chunks_exact_mut(n).zip(inputs) {
-            let (xp, xq) = x.split_at(n);
-            for ((sv, a), b) in s.iter_mut().zip(xp).zip(xq) {
-                *sv = Complex64::new(*a, *b);
-            }
-            self.basis.forward(s, &mut ws.scratch);
+            self.input_spectrum(x, s, &mut ws.scratch);
         }
-        let stride = (self.p + 1) * n;
         for ((j, i), o) in indices.enumerate().zip(out.chunks_exact_mut(2 * n)) {
-            let f = &self.phis[i * stride..(i + 1) * stride];
-            spectral_block(&mut ws.buf, f, &ws.spec, &coef[j * m..(j + 1) * m]);
-            self.basis.inverse(&mut ws.buf, &mut ws.scratch);
-            let (op, oq) = o.split_at_mut(n);
-            for ((a, b), w) in op.iter_mut().zip(oq.iter_mut()).zip(&ws.buf) {
-                *a = w.re;
-                *b = w.im;
-            }
+            let c = &coef[j * m..(j + 1) * m];
+            self.output_block(i, &ws.spec, c, o, &mut ws.buf, &mut ws.scratch);
         }
+    }
+
+    /// The inputs' transforms concurrently (one group per helper, into `ws`), then the output
+    /// blocks (one group per helper); each by the code of [`combine`](PhiBank::combine).
+    fn combine_concurrent(
+        &self,
+        indices: Range<usize>,
+        y0: &[f64],
+        g: &[f64],
+        coef: &[f64],
+        out: &mut [f64],
+        ws: &mut Self::Workspace,
+        helpers: &mut [Self::Workspace],
+    ) {
+        if helpers.is_empty() {
+            return self.combine(indices, y0, g, coef, out, ws);
+        }
+        let n = self.n;
+        let m = combine_shape(2 * n, self.len, self.p, &indices, y0, g, coef, out);
+        if n == 0 || indices.is_empty() {
+            return;
+        }
+        let input = |k: usize| {
+            if k == 0 {
+                y0
+            } else {
+                &g[(k - 1) * 2 * n..k * 2 * n]
+            }
+        };
+        in_pool(|| {
+            for_each_chunk(&mut ws.spec[..(m + 1) * n], n, helpers, &|k, s, w| {
+                self.input_spectrum(input(k), s, &mut w.scratch)
+            });
+            let spec = &ws.spec;
+            for_each_chunk(out, 2 * n, helpers, &|j, o, w| {
+                let c = &coef[j * m..(j + 1) * m];
+                self.output_block(indices.start + j, spec, c, o, &mut w.buf, &mut w.scratch);
+            });
+        });
+    }
+
+    fn join<RA, RB, A, B2>(
+        &self,
+        wa: &mut Self::Workspace,
+        wb: &mut Self::Workspace,
+        a: A,
+        b: B2,
+    ) -> (RA, RB)
+    where
+        RA: Send,
+        RB: Send,
+        A: FnOnce(&Self, &mut Self::Workspace) -> RA + Send,
+        B2: FnOnce(&Self, &mut Self::Workspace) -> RB + Send,
+    {
+        rayon::join(|| a(self, wa), || b(self, wb))
     }
 
     /// `y0 + (increment through the basis)`, as for the circulant banks: with `u = p + iq`,

@@ -68,6 +68,18 @@ pub trait TestProblem {
     fn linear_matrix(&self) -> DMatrix<f64>;
     /// The nonlinear part `g(y) = Q∇V(y)`, written into `out`.
     fn nonlinear(&self, y: &[f64], out: &mut [f64]);
+    /// g at several states, block `skip` of `out` left as it is (what
+    /// [`System::nonlinear_stages`](crate::system::System::nonlinear_stages) of a
+    /// [`ProblemSystem`] does): one after another by default; the built-in problems evaluate
+    /// them concurrently ([`nonlinear_concurrent`](crate::system::nonlinear_concurrent)).
+    fn nonlinear_stages(&self, ys: &[f64], out: &mut [f64], skip: Option<usize>) {
+        let d = self.dim();
+        for (j, (y, o)) in ys.chunks_exact(d).zip(out.chunks_exact_mut(d)).enumerate() {
+            if skip != Some(j) {
+                self.nonlinear(y, o);
+            }
+        }
+    }
     /// The gradient `∇V(y)`, written into `out`.
     fn grad_v(&self, y: &[f64], out: &mut [f64]);
     /// The potential `V(y)`.
@@ -96,6 +108,14 @@ macro_rules! forward_test_problem {
             }
             fn nonlinear(&self, y: &[f64], out: &mut [f64]) {
                 <$ty>::nonlinear(self, y, out)
+            }
+            fn nonlinear_stages(&self, ys: &[f64], out: &mut [f64], skip: Option<usize>) {
+                let d = <$ty>::dim(self);
+                $crate::concurrent::for_each_block(out, d, &mut [], 0, &|j, o, _| {
+                    if skip != Some(j) {
+                        <$ty>::nonlinear(self, &ys[j * d..(j + 1) * d], o);
+                    }
+                });
             }
             fn grad_v(&self, y: &[f64], out: &mut [f64]) {
                 <$ty>::grad_v(self, y, out)

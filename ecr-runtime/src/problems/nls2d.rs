@@ -148,6 +148,16 @@ impl System for Nls2dSystem {
     fn nonlinear(&self, y: &[f64], out: &mut [f64], _scratch: &mut [f64]) {
         self.problem.nonlinear(y, out)
     }
+    /// Concurrently ([`nonlinear_concurrent`](crate::system::nonlinear_concurrent)).
+    fn nonlinear_stages(
+        &self,
+        ys: &[f64],
+        out: &mut [f64],
+        scratch: &mut [f64],
+        skip: Option<usize>,
+    ) {
+        crate::system::nonlinear_concurrent(self, ys, out, scratch, skip)
+    }
     fn energy(&self, y: &[f64]) -> Option<f64> {
         self.energy_of(y).ok()
     }

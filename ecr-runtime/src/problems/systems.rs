@@ -96,6 +96,15 @@ impl<P: TestProblem, Op: LinearOperator> System for ProblemSystem<P, Op> {
     fn nonlinear(&self, y: &[f64], out: &mut [f64], _scratch: &mut [f64]) {
         self.problem.nonlinear(y, out)
     }
+    fn nonlinear_stages(
+        &self,
+        ys: &[f64],
+        out: &mut [f64],
+        _scratch: &mut [f64],
+        skip: Option<usize>,
+    ) {
+        self.problem.nonlinear_stages(ys, out, skip)
+    }
     fn energy(&self, y: &[f64]) -> Option<f64> {
         Some(self.problem.energy(y))
     }
