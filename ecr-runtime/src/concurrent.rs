@@ -15,6 +15,30 @@ pub(crate) fn in_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
     rayon::scope(|_| f())
 }
 
+/// The two phases of a spectral bank's concurrent `combine`: `input(k, spec_k, w)` transforms
+/// input k into chunk k (of `n`) of `spec`, then `output(j, spec, out_j, w)` forms output block j
+/// (chunks of `block`) from all of them; each phase split over the workspaces `wss` as by
+/// [`for_each_chunk`].
+pub(crate) fn two_phase_combine<W, I, O>(
+    spec: &mut [num_complex::Complex64],
+    n: usize,
+    out: &mut [f64],
+    block: usize,
+    wss: &mut [W],
+    input: &I,
+    output: &O,
+) where
+    W: Send,
+    I: Fn(usize, &mut [num_complex::Complex64], &mut W) + Sync,
+    O: Fn(usize, &[num_complex::Complex64], &mut [f64], &mut W) + Sync,
+{
+    in_pool(|| {
+        for_each_chunk(spec, n, wss, input);
+        let spec = &*spec;
+        for_each_chunk(out, block, wss, &|j, o, w| output(j, spec, o, w));
+    });
+}
+
 /// Calls `f(k, chunk_k, w)` for every chunk `k` of `out` (chunks of `len` ≥ 1, `out.len()` a
 /// multiple of it), with the chunks split into contiguous groups, one per workspace of `wss`
 /// (at least one), the groups run concurrently and each group's chunks in order.

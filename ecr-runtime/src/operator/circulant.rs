@@ -12,7 +12,7 @@ use super::{
     Distinct, LinearOperator, NodeFunctions, PhiBank, apply_shape, check_bank_args,
     check_bank_values, combine_shape,
 };
-use crate::concurrent::{for_each_chunk, in_pool};
+use crate::concurrent::two_phase_combine;
 use crate::phi::{cexp_dd, two_sum};
 use crate::{Error, Result};
 
@@ -461,16 +461,18 @@ impl<B: SpectralBasis> PhiBank for SpectralBank<B> {
             return;
         }
         let input = |k: usize| if k == 0 { y0 } else { &g[(k - 1) * n..k * n] };
-        in_pool(|| {
-            for_each_chunk(&mut ws.spec[..(m + 1) * n], n, helpers, &|k, s, w| {
-                self.input_spectrum(input(k), s, &mut w.scratch)
-            });
-            let spec = &ws.spec;
-            for_each_chunk(out, n, helpers, &|j, o, w| {
+        two_phase_combine(
+            &mut ws.spec[..(m + 1) * n],
+            n,
+            out,
+            n,
+            helpers,
+            &|k, s, w: &mut Self::Workspace| self.input_spectrum(input(k), s, &mut w.scratch),
+            &|j, spec, o, w: &mut Self::Workspace| {
                 let c = &coef[j * m..(j + 1) * m];
                 self.output_block(indices.start + j, spec, c, o, &mut w.buf, &mut w.scratch);
-            });
-        });
+            },
+        );
     }
 
     fn join<RA, RB, A, B2>(

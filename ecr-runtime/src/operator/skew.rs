@@ -9,7 +9,7 @@ use super::{
     Distinct, LinearOperator, NodeFunctions, PhiBank, apply_shape, check_bank_args, combine_shape,
 };
 use crate::Result;
-use crate::concurrent::{for_each_chunk, in_pool};
+use crate::concurrent::two_phase_combine;
 
 /// A unitary change of basis `V` acting on complex vectors of length n, in which a
 /// [`SkewGenerator`] is diagonal.
@@ -278,16 +278,18 @@ impl<B: SpectralBasis> PhiBank for SkewPairBank<B> {
                 &g[(k - 1) * 2 * n..k * 2 * n]
             }
         };
-        in_pool(|| {
-            for_each_chunk(&mut ws.spec[..(m + 1) * n], n, helpers, &|k, s, w| {
-                self.input_spectrum(input(k), s, &mut w.scratch)
-            });
-            let spec = &ws.spec;
-            for_each_chunk(out, 2 * n, helpers, &|j, o, w| {
+        two_phase_combine(
+            &mut ws.spec[..(m + 1) * n],
+            n,
+            out,
+            2 * n,
+            helpers,
+            &|k, s, w: &mut Self::Workspace| self.input_spectrum(input(k), s, &mut w.scratch),
+            &|j, spec, o, w: &mut Self::Workspace| {
                 let c = &coef[j * m..(j + 1) * m];
                 self.output_block(indices.start + j, spec, c, o, &mut w.buf, &mut w.scratch);
-            });
-        });
+            },
+        );
     }
 
     fn join<RA, RB, A, B2>(
