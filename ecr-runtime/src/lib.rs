@@ -9,6 +9,7 @@ pub mod operator;
 pub mod phi;
 pub mod problems;
 pub mod second_order;
+pub mod solve;
 pub mod special;
 pub mod stepper;
 mod storage;
@@ -19,6 +20,20 @@ pub use error::{Error, Result};
 /// The linear-algebra crate of the public signatures (`DMatrix`, `SMatrix`), re-exported so
 /// that users need not pin a matching version.
 pub use nalgebra;
+
+/// What a program that solves a problem needs, in one import: `use ecr_runtime::prelude::*;`.
+pub mod prelude {
+    pub use crate::ecr_method;
+    pub use crate::nalgebra::{DMatrix, DVector, SMatrix};
+    pub use crate::operator::{Dense, DenseStatic, Diagonal, LinearOperator, Scalar, Symmetric};
+    pub use crate::second_order::{Omega, SecondOrder, SecondOrderForm, SecondOrderSystem};
+    pub use crate::solve::{
+        Direction, Event, Method, Options, Problem, Solution, Status, linspace,
+    };
+    pub use crate::stepper::{EcStepper, SolverSettings};
+    pub use crate::system::{GradientFlow, Hamiltonian, Semilinear, System};
+    pub use crate::{Error, Result};
+}
 
 // Lets code emitted by `ecr_method!` name this crate `::ecr_runtime` from inside it too.
 extern crate self as ecr_runtime;

@@ -296,6 +296,43 @@ impl<GV: Fn(&[f64], &mut [f64])> Hamiltonian<GV> {
     }
 }
 
+impl<GV: Fn(&[f64], &mut [f64])> Hamiltonian<GV> {
+    /// A canonical system in y = (q, p) (d = 2n): Q = [[0, I], [−I, 0]], so q' = ∂H/∂p and
+    /// p' = −∂H/∂q, with H(y) = ½yᵀMy + V(y) and ∇V given for all of y (write 0 where V
+    /// does not depend on a component). Add V with [`potential`](Self::potential) to have
+    /// the energy reported.
+    ///
+    /// # Errors
+    /// As [`Hamiltonian::new`], and [`Error::InvalidInput`] for an odd dimension.
+    pub fn canonical(m: DMatrix<f64>, grad_v: GV) -> Result<Self> {
+        let d = m.nrows();
+        if d % 2 != 0 {
+            return Err(Error::InvalidInput(format!(
+                "a canonical system has y = (q, p), an even dimension (M is {d} × {})",
+                m.ncols()
+            )));
+        }
+        let n = d / 2;
+        let mut q = DMatrix::zeros(d, d);
+        for i in 0..n {
+            q[(i, n + i)] = 1.0;
+            q[(n + i, i)] = -1.0;
+        }
+        Self::new(q, m, grad_v)
+    }
+
+    /// The same system with the potential V, so that the energy H = ½yᵀMy + V is reported.
+    pub fn potential<V: Fn(&[f64]) -> f64>(self, v: V) -> Hamiltonian<GV, V> {
+        Hamiltonian {
+            op: self.op,
+            q: self.q,
+            m: self.m,
+            grad_v: self.grad_v,
+            v: Some(v),
+        }
+    }
+}
+
 impl<GV: Fn(&[f64], &mut [f64]), V: Fn(&[f64]) -> f64> Hamiltonian<GV, V> {
     /// From Q, M, ∇V and V: the energy H = ½yᵀMy + V is reported.
     ///
