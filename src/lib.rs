@@ -19,3 +19,13 @@
 pub use ecr_codegen as codegen;
 pub use ecr_runtime as runtime;
 pub use ecr_runtime::ecr_method;
+/// The linear-algebra crate of the public signatures, so that users need not pin a version.
+pub use ecr_runtime::nalgebra;
+/// Everything a program that solves a problem needs: `use ecr::prelude::*;`.
+pub use ecr_runtime::prelude;
+pub use ecr_runtime::solve::{Options, Problem, Solution};
+
+// The README's examples run as doctests.
+#[doc = include_str!("../README.md")]
+#[cfg(doctest)]
+pub struct ReadmeDoctests;
