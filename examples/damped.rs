@@ -4,7 +4,7 @@ use ecr::prelude::*;
 
 fn main() -> Result<()> {
     let q = DMatrix::from_row_slice(2, 2, &[0.0, 1.0, -1.0, -0.1]);
-    let grad_v = |y: &[f64], dv: &mut [f64]| dv.copy_from_slice(&[y[0].powi(3), 0.0]);
+    let grad_v = |y: &[f64], g: &mut [f64]| g[0] = y[0].powi(3);
     let system =
         Hamiltonian::new(q, DMatrix::identity(2, 2), grad_v)?.potential(|y| 0.25 * y[0].powi(4));
     let problem = Problem::new(system, [2.0, 0.0], (0.0, 50.0))?;

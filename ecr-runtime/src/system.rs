@@ -298,9 +298,9 @@ impl<GV: Fn(&[f64], &mut [f64])> Hamiltonian<GV> {
 
 impl<GV: Fn(&[f64], &mut [f64])> Hamiltonian<GV> {
     /// A canonical system in y = (q, p) (d = 2n): Q = [[0, I], [−I, 0]], so q' = ∂H/∂p and
-    /// p' = −∂H/∂q, with H(y) = ½yᵀMy + V(y) and ∇V given for all of y (write 0 where V
-    /// does not depend on a component). Add V with [`potential`](Self::potential) to have
-    /// the energy reported.
+    /// p' = −∂H/∂q, with H(y) = ½yᵀMy + V(y) and ∇V written for all of y into a slice of
+    /// zeros (components V does not depend on may be left alone). Add V with
+    /// [`potential`](Self::potential) to have the energy reported.
     ///
     /// # Errors
     /// As [`Hamiltonian::new`], and [`Error::InvalidInput`] for an odd dimension.
@@ -380,6 +380,8 @@ impl<GV: Fn(&[f64], &mut [f64]), V: Fn(&[f64]) -> f64> System for Hamiltonian<GV
         &self.op
     }
     fn nonlinear(&self, y: &[f64], out: &mut [f64], scratch: &mut [f64]) {
+        // ∇V is written into zeros: components V does not depend on may be left alone.
+        scratch.fill(0.0);
         (self.grad_v)(y, scratch);
         // out = Q ∇V(y)
         for (i, o) in out.iter_mut().enumerate() {
