@@ -12,9 +12,11 @@ use ecr_runtime::baselines::exponential::HochOst4;
 use ecr_runtime::integrate::{IntegrateOptions, integrate};
 use ecr_runtime::problems::{Duffing, Nls, Wind};
 use ecr_runtime::second_order::{SecondOrderForm, TcStepper};
+use ecr_runtime::solve::{Options, Problem as SolveProblem};
 use ecr_runtime::stepper::{EcStepper, Predictor, SolverSettings};
 use ecr_runtime::system::System;
 use std::hint::black_box;
+use std::ops::ControlFlow;
 use std::time::Instant;
 
 /// The stage solver of every implicit method in the benchmark (ECrP, TCrP, HBVM family):
@@ -181,6 +183,51 @@ impl<S: System> Run for Dop853<S> {
         }
         .map(|stats| stats.f_evals)
         .map_err(err_s)
+    }
+}
+
+/// `solve` with a tolerance: pilot runs choose r and h, then one run with output at t_end.
+struct Solve<S> {
+    system: S,
+    tol: f64,
+}
+
+impl<S: System> Run for Solve<S> {
+    fn run(
+        &mut self,
+        y: &mut [f64],
+        t_end: f64,
+        observe: Option<Observe<'_>>,
+    ) -> Result<usize, String> {
+        let problem = SolveProblem::new(&self.system, y.to_vec(), (0.0, t_end)).map_err(err_s)?;
+        let options = Options::tolerance(self.tol).t_eval([t_end]);
+        let sol = match observe {
+            Some(f) => problem.solve_with(&options, |step| {
+                f(step.y);
+                ControlFlow::Continue(())
+            }),
+            None => problem.solve(&options),
+        }
+        .map_err(err_s)?;
+        y.copy_from_slice(sol.last().ok_or("solve gave no output")?);
+        Ok(sol.stats.total_g_evals())
+    }
+}
+
+/// The `solve` series: tolerances rtol = atol = tol, everything (pilots, run) in the time.
+fn solve_series(problem: &Problem) -> Series {
+    let p = problem.clone();
+    Series {
+        label: "solve".to_string(),
+        group: "solve (tolerance)",
+        family: Family::Runtime,
+        r: None,
+        s: None,
+        knob: Knob::Tol,
+        build: Box::new(
+            move |tol| on_system!(&p, sys => Ok(Box::new(Solve { system: sys, tol }) as BoxedRun)),
+        ),
+        g_cost: None,
     }
 }
 
@@ -840,6 +887,7 @@ fn duffing(c: &Config) -> Result<ProblemRun, String> {
     series.extend(peers::duffing(&d, h0));
     series.extend(dense_baselines(&problem, h0)?);
     series.push(dop_series(&problem));
+    series.push(solve_series(&problem));
     Ok(run_problem(
         "duffing",
         format!("Duffing ω = {OMEGA}, k = {K}, T = {t}"),
@@ -868,6 +916,7 @@ fn wind(c: &Config) -> Result<ProblemRun, String> {
     series.extend(peers::wind(&Wind::conservative(), h0));
     series.extend(dense_baselines(&problem, h0)?);
     series.push(dop_series(&problem));
+    series.push(solve_series(&problem));
     Ok(run_problem(
         "wind",
         format!("conservative wind (θ = π/2), T = {t}"),
@@ -921,6 +970,7 @@ fn nls(c: &Config) -> Result<ProblemRun, String> {
         move |h| on_system!(&p, sys => boxed(rkepc2(sys, h, solver()))),
     ));
     series.push(dop_series(&problem));
+    series.push(solve_series(&problem));
     Ok(run_problem(
         "nls",
         format!("NLS N = {NLS_N}, T = {t}"),
