@@ -34,9 +34,12 @@
 //! extrapolated error is half the tolerance in the scaled max-norm
 //! `max_i |e_i| / (atol + rtol |y_i|)`. The estimate is trusted once two windows at
 //! different h agree with E ∝ h^{2r}. The order with the fewest predicted evaluations of g
-//! over the run wins, and the integration runs at its fixed h: a fixed step keeps ECrP's
-//! long-time behaviour (the energy to round-off, no drift over 10⁶ steps and more), which a
-//! step size that changes with the state would not.
+//! over the run wins, and the integration runs at its fixed h. A fixed step keeps ECrP's
+//! long-time behaviour; a varying one does not. On Duffing ω = 20 with EC6P and 10⁶ steps
+//! around h = 0.0576, the largest relative energy error was:
+//! - 1.5e−13 with h fixed, bounded (the same in each tenth of the run);
+//! - 4.2e−10 with the step cycling pseudo-randomly through 0.8h–1.2h, growing over the run
+//!   (`cargo run --release --example variable_step`).
 //!
 //! # Output
 //!
