@@ -77,7 +77,7 @@ pub fn ec_kernel_moment(r: usize, tau: &Rat, sigma: &Rat, terms: usize) -> Vec<R
 }
 
 /// The defining integral Ā_{τ,σ}(z) = ∫₀¹ e^{(1−ξ)τz} P(ξτ, σ) dξ (paper eq. `Aexplicit`),
-/// P(x, σ) = Σ_{j<r} (2j+1) P̃ⱼ(x) P̃ⱼ(σ): [zⁿ] = τⁿ/n! ∫₀¹ (1−ξ)ⁿ P(ξτ, σ) dξ, integrated exactly.
+/// P(x, σ) = Σ_{j<r} (2j+1) P̃ⱼ(x) P̃ⱼ(σ): \[zⁿ\] = τⁿ/n! ∫₀¹ (1−ξ)ⁿ P(ξτ, σ) dξ, integrated exactly.
 pub fn ec_kernel_by_integral(r: usize, tau: &Rat, sigma: &Rat, terms: usize) -> Vec<Rat> {
     let p = projection_kernel(r, sigma).dilate(tau);
     (0..terms)
