@@ -235,8 +235,10 @@ struct Newtype {
 
 /// A newtype around a runtime stepper: `fixed` and `with_settings` constructors, `Deref` and
 /// `DerefMut` to the stepper (its methods, e.g. `step`, are called as before), conversions from
-/// and into it, and `Integrator` (so that `integrate` drives it). Every method is a forwarding
-/// call marked `#[inline]`: the steps are the runtime stepper's, bit for bit and at its cost.
+/// and into it, and `Integrator` (so that `integrate` drives it). `#[repr(transparent)]`, and
+/// every method a forwarding call marked `#[inline]` (`deref_mut` `#[inline(always)]`): a
+/// step is the runtime stepper's own `step`, the same monomorphised function as behind the
+/// former type alias, bit for bit and at its cost.
 fn newtype(args: &MethodArgs, rt: &TokenStream, t: &Newtype) -> TokenStream {
     let vis = &args.vis;
     let Newtype {
@@ -271,6 +273,7 @@ fn newtype(args: &MethodArgs, rt: &TokenStream, t: &Newtype) -> TokenStream {
         #[doc = #doc_more]
         ///
         #[doc = #doc_link]
+        #[repr(transparent)]
         #vis struct #name #params(#inner);
 
         impl #params #name #args_ {
