@@ -20,7 +20,7 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use ecr::ecr_method;
 use ecr::runtime::operator::{Dense, DenseStatic, PhiBank};
 use ecr::runtime::problems::{Duffing, Wind};
-use ecr::runtime::stepper::{EcStepper, Kernel, SolverSettings, Stepper, gemv_cm};
+use ecr::runtime::stepper::{EcStepper, Kernel, SolverSettings, gemv_cm};
 use ecr::runtime::system::Semilinear;
 use nalgebra::{DMatrix, SMatrix};
 use std::hint::black_box;
@@ -47,13 +47,8 @@ fn bench_problem<G: Fn(&[f64], &mut [f64]) + Copy>(
         compensated: false,
         ..SolverSettings::default()
     };
-    let mut fixed_plain: Ec3<_, 2> = Stepper::from_kernel(
-        Ec3Kernel,
-        Semilinear::new(DenseStatic::new(sa).unwrap(), g),
-        H,
-        plain,
-    )
-    .unwrap();
+    let mut fixed_plain: Ec3<_, 2> =
+        Ec3::with_settings(Semilinear::new(DenseStatic::new(sa).unwrap(), g), H, plain).unwrap();
     let mut rt_dense =
         EcStepper::new(Semilinear::new(Dense::new(a.clone()).unwrap(), g), 3, H).unwrap();
     let mut rt_static =
@@ -186,8 +181,7 @@ fn issue_cases(c: &mut Criterion) {
     let sa: SMatrix<f64, 2, 2> = SMatrix::from_iterator(d.linear_matrix().iter().copied());
     let p = d.clone();
     let g = move |y: &[f64], o: &mut [f64]| p.nonlinear(y, o);
-    let mut fixed: Ec6<_, 2> = Stepper::from_kernel(
-        Ec6Kernel,
+    let mut fixed: Ec6<_, 2> = Ec6::with_settings(
         Semilinear::new(DenseStatic::new(sa).unwrap(), g.clone()),
         h,
         settings,
@@ -248,8 +242,7 @@ fn issue_cases(c: &mut Criterion) {
 
     let fpu = Fpu::default();
     let (q0, p0) = fpu.initial_value();
-    let mut fixed: Tc3<_, 6> =
-        TcStepper::from_kernel(Tc3Kernel, fpu.system().unwrap(), H, settings).unwrap();
+    let mut fixed: Tc3<_, 6> = Tc3::with_settings(fpu.system().unwrap(), H, settings).unwrap();
     let mut rt = TcStepper::with_nodes(fpu.system().unwrap(), 3, 3, H, settings).unwrap();
     let (qa, pa) = (q0.clone(), p0.clone());
     let mut run_macro = move || {

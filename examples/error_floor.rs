@@ -3,8 +3,8 @@
 //!
 //! For r = 1..=12 (s = r and s = r + 2; for r = 12 also s = 16): the smallest global error ECrP reaches on
 //! Duffing (ω = 1, k = 0.5, T = 10, exact solution) as h is halved from 1. For context, the
-//! size of the φ-form moment weights w_kj = b_j β_k(c_j) of DESIGN.md §2 and how far their
-//! f64 values are from the exact identity Σ_k w_kj/(k+1)! = b_j: large |w_kj| with
+//! size of the φ-form moment weights w_kj = b_j β_k(c_j) (`docs/method.md#moment-form`) and how
+//! far their f64 values are from the exact identity Σ_k w_kj/(k+1)! = b_j: large |w_kj| with
 //! alternating signs lose digits. The stepper uses the Legendre form instead (moments with
 //! weights ℓ_kj = b_j P̃_k(c_j), |ℓ_kj| ≤ b_j, and directly computed kernels; see
 //! `ecr_runtime::stepper`), whose floor this table shows. The φ-form floor, for comparison,

@@ -1,7 +1,8 @@
 //! Power series of the method's kernels with exact rational coefficients, each computed two
 //! or three ways: from the closed form the paper gives, from the moment form the runtime
 //! uses, and from the defining integral (exact polynomial integration). The test suite checks
-//! they agree; a disagreement is a typo in a closed form (DESIGN.md: erratum 1 is one).
+//! they agree; a disagreement is a typo in a closed form (erratum E1 is one:
+//! `docs/errata.md#e1-kernel-tau-factor`).
 //!
 //! All series are truncated: element `n` of a returned vector is the coefficient of zⁿ (or Kⁿ).
 
@@ -77,7 +78,7 @@ pub fn ec_kernel_moment(r: usize, tau: &Rat, sigma: &Rat, terms: usize) -> Vec<R
 }
 
 /// The defining integral Ā_{τ,σ}(z) = ∫₀¹ e^{(1−ξ)τz} P(ξτ, σ) dξ (paper eq. `Aexplicit`),
-/// P(x, σ) = Σ_{j<r} (2j+1) P̃ⱼ(x) P̃ⱼ(σ): [zⁿ] = τⁿ/n! ∫₀¹ (1−ξ)ⁿ P(ξτ, σ) dξ, integrated exactly.
+/// P(x, σ) = Σ_{j<r} (2j+1) P̃ⱼ(x) P̃ⱼ(σ): \[zⁿ\] = τⁿ/n! ∫₀¹ (1−ξ)ⁿ P(ξτ, σ) dξ, integrated exactly.
 pub fn ec_kernel_by_integral(r: usize, tau: &Rat, sigma: &Rat, terms: usize) -> Vec<Rat> {
     let p = projection_kernel(r, sigma).dilate(tau);
     (0..terms)
@@ -144,7 +145,7 @@ pub fn tc_a_hypergeometric(r: usize, tau: &Rat, sigma: &Rat, terms: usize) -> Ve
         .collect()
 }
 
-/// 𝒜_{τ,σ}(K) in moment form: Σ_k τᵏ φᵗ_{k+2}(K) β_k(σ) (DESIGN.md §2).
+/// 𝒜_{τ,σ}(K) in moment form: Σ_k τᵏ φᵗ_{k+2}(K) β_k(σ) (`docs/method.md#tcrp`).
 pub fn tc_a_moment(r: usize, tau: &Rat, sigma: &Rat, terms: usize) -> Vec<Rat> {
     let betas: Vec<Rat> = (0..r).map(|k| beta(r, k).eval(sigma)).collect();
     (0..terms)

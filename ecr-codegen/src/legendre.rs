@@ -1,5 +1,5 @@
 //! Shifted Legendre polynomials on [0, 1] and the coefficients built from them
-//! (DESIGN.md §2; paper §8, eq. `barA`).
+//! (`docs/method.md#legendre-basis`; paper §8.1, eq. `barA`).
 
 use crate::poly::Poly;
 use crate::rat::{Rat, binomial, factorial};
@@ -26,7 +26,8 @@ pub fn shifted_legendre(j: usize) -> Poly {
 /// c_{jk} = (−1)^{j+k} (j+k)! / (k! (j−k)!) for 0 ≤ k ≤ j (zero for k > j).
 ///
 /// With these, P̃ⱼ(x) = Σₖ c_{jk} xᵏ / k!, and ∫₀¹ e^{(1−ξ)τz} P̃ⱼ(ξτ) dξ = Σₖ c_{jk} τᵏ φ_{k+1}(τz)
-/// (the kernel of DESIGN.md §2, with the factor τᵏ the paper's eq. `barA` drops).
+/// (the kernel Ψ_j of `docs/method.md#legendre-kernels`, with the factor τᵏ the paper's eq.
+/// `barA` drops: `docs/errata.md#e1-kernel-tau-factor`).
 pub fn c_jk(j: usize, k: usize) -> Rat {
     if k > j {
         return Rat::zero();

@@ -120,20 +120,12 @@ pub fn expand(args: &MethodArgs) -> syn::Result<TokenStream> {
     })
 }
 
-/// The stepper aliases of a family.
+/// The stepper types of a family: newtypes (not aliases) around the runtime's steppers, so that
+/// a type error names the type the user wrote (`Ec3<_, _>`), not the runtime's generic
+/// `Stepper<…, StaticBuffers<…>>` behind it.
 fn stepper_aliases(args: &MethodArgs, rt: &TokenStream, kernel: &Ident) -> TokenStream {
-    let (r, s, vis, name) = (args.r, args.s, &args.vis, &args.name);
+    let (r, s, name) = (args.r, args.s, &args.name);
     let dyn_name = format_ident!("{}Dyn", name);
-    let doc_static = format!(
-        " ECrP of order {} (r = {r}, s = {s}) for a system of dimension `D` known at compile time: \
-         stage state in fixed-size arrays, no heap use per step.",
-        2 * r
-    );
-    let doc_dyn = format!(
-        " ECrP of order {} (r = {r}, s = {s}) for a dimension known at run time: stage state \
-         allocated once at construction.",
-        2 * r
-    );
     if args.family != Family::Ec {
         let what = if args.family == Family::Tc {
             "TCrP, for q'' + Ωq = −∇U(q)"
@@ -151,26 +143,227 @@ fn stepper_aliases(args: &MethodArgs, rt: &TokenStream, kernel: &Ident) -> Token
              allocated once at construction.",
             2 * r
         );
-        return quote! {
-            #[doc = #doc]
-            #vis type #name<Sys, const N: usize> = #rt::second_order::TcStepper<
-                Sys,
-                #kernel,
-                #rt::stepper::StaticBuffers<N, #s, #r, 2>,
-            >;
-
-            #[doc = #doc_dyn]
-            #vis type #dyn_name<Sys> =
-                #rt::second_order::TcStepper<Sys, #kernel, #rt::stepper::VecBuffers>;
-        };
+        let system = quote!(#rt::second_order::SecondOrderSystem);
+        let stepper = quote!(#rt::second_order::TcStepper);
+        let fixed = newtype(
+            args,
+            rt,
+            &Newtype {
+                name: name.clone(),
+                doc,
+                dim: Some(format_ident!("N")),
+                system: system.clone(),
+                stepper: stepper.clone(),
+                inner: quote!(#stepper<Sys, #kernel, #rt::stepper::StaticBuffers<N, #s, #r, 2>>),
+                kernel: kernel.clone(),
+            },
+        );
+        let dynamic = newtype(
+            args,
+            rt,
+            &Newtype {
+                name: dyn_name,
+                doc: doc_dyn,
+                dim: None,
+                system,
+                stepper: stepper.clone(),
+                inner: quote!(#stepper<Sys, #kernel, #rt::stepper::VecBuffers>),
+                kernel: kernel.clone(),
+            },
+        );
+        return quote!(#fixed #dynamic);
     }
-    quote! {
-        #[doc = #doc_static]
-        #vis type #name<Sys, const D: usize> =
-            #rt::stepper::Stepper<#kernel, Sys, #rt::stepper::StaticBuffers<D, #s, #r>>;
+    let doc = format!(
+        " ECrP of order {} (r = {r}, s = {s}) for a system of dimension `D` known at compile time: \
+         stage state in fixed-size arrays, no heap use per step.",
+        2 * r
+    );
+    let doc_dyn = format!(
+        " ECrP of order {} (r = {r}, s = {s}) for a dimension known at run time: stage state \
+         allocated once at construction.",
+        2 * r
+    );
+    let system = quote!(#rt::system::System);
+    let stepper = quote!(#rt::stepper::Stepper);
+    let fixed = newtype(
+        args,
+        rt,
+        &Newtype {
+            name: name.clone(),
+            doc,
+            dim: Some(format_ident!("D")),
+            system: system.clone(),
+            stepper: stepper.clone(),
+            inner: quote!(#stepper<#kernel, Sys, #rt::stepper::StaticBuffers<D, #s, #r>>),
+            kernel: kernel.clone(),
+        },
+    );
+    let dynamic = newtype(
+        args,
+        rt,
+        &Newtype {
+            name: dyn_name,
+            doc: doc_dyn,
+            dim: None,
+            system,
+            stepper: stepper.clone(),
+            inner: quote!(#stepper<#kernel, Sys, #rt::stepper::VecBuffers>),
+            kernel: kernel.clone(),
+        },
+    );
+    quote!(#fixed #dynamic)
+}
 
-        #[doc = #doc_dyn]
-        #vis type #dyn_name<Sys> = #rt::stepper::Stepper<#kernel, Sys, #rt::stepper::VecBuffers>;
+/// One emitted stepper type.
+struct Newtype {
+    /// The type's name (`Ec3`, `Ec3Dyn`, `Tc2`, …).
+    name: Ident,
+    /// Its doc comment (first paragraph).
+    doc: String,
+    /// The const parameter of the dimension (`D`, or `N` positions), if the size is static.
+    dim: Option<Ident>,
+    /// The trait bound of `Sys`.
+    system: TokenStream,
+    /// The runtime stepper type without parameters (its associated functions `fixed` and
+    /// `from_kernel` build the inner value).
+    stepper: TokenStream,
+    /// The wrapped runtime stepper type.
+    inner: TokenStream,
+    /// The kernel type.
+    kernel: Ident,
+}
+
+/// A newtype around a runtime stepper: `fixed` and `with_settings` constructors, `Deref` and
+/// `DerefMut` to the stepper (its methods, e.g. `step`, are called as before), conversions from
+/// and into it, and `Integrator` (so that `integrate` drives it). `#[repr(transparent)]`, and
+/// every method a forwarding call marked `#[inline]` (`deref_mut` `#[inline(always)]`): a
+/// step is the runtime stepper's own `step`, the same monomorphised function as behind the
+/// former type alias, bit for bit and at its cost.
+fn newtype(args: &MethodArgs, rt: &TokenStream, t: &Newtype) -> TokenStream {
+    let vis = &args.vis;
+    let Newtype {
+        name,
+        doc,
+        dim,
+        system,
+        stepper,
+        inner,
+        kernel,
+    } = t;
+    let (params, args_) = match dim {
+        Some(d) => (quote!(<Sys: #system, const #d: usize>), quote!(<Sys, #d>)),
+        None => (quote!(<Sys: #system>), quote!(<Sys>)),
+    };
+    let doc_more = format!(
+        " A newtype around [`{}`]: it dereferences to it (`step`, `step_size`, `dense_output`, … \
+         are the stepper's), converts from and into it, and implements \
+         [`Integrator`]. Build it with [`fixed`](Self::fixed) or \
+         [`with_settings`](Self::with_settings).",
+        inner_name(args.family),
+    );
+    let doc_link = format!(
+        " [`{}`]: {}\n [`Integrator`]: {}::integrate::Integrator",
+        inner_name(args.family),
+        inner_path(args.family, rt),
+        rt
+    );
+    quote! {
+        #[doc = #doc]
+        ///
+        #[doc = #doc_more]
+        ///
+        #[doc = #doc_link]
+        #[repr(transparent)]
+        #vis struct #name #params(#inner);
+
+        impl #params #name #args_ {
+            /// The stepper with step size `h` and the default solver settings.
+            ///
+            /// # Errors
+            /// As the runtime stepper's `from_kernel`: bad `h`, a system whose dimension does
+            /// not fit, or whatever building the φ-bank reports.
+            #[inline]
+            pub fn fixed(system: Sys, h: f64) -> #rt::Result<Self> {
+                #stepper::fixed(system, h).map(Self)
+            }
+
+            /// The stepper with step size `h` and the given solver settings.
+            ///
+            /// # Errors
+            /// As [`fixed`](Self::fixed), and bad settings.
+            #[inline]
+            pub fn with_settings(
+                system: Sys,
+                h: f64,
+                settings: #rt::stepper::SolverSettings,
+            ) -> #rt::Result<Self> {
+                #stepper::from_kernel(#kernel, system, h, settings).map(Self)
+            }
+
+            /// The runtime stepper inside.
+            #[inline]
+            pub fn into_inner(self) -> #inner {
+                self.0
+            }
+        }
+
+        impl #params ::core::ops::Deref for #name #args_ {
+            type Target = #inner;
+            #[inline(always)]
+            fn deref(&self) -> &Self::Target {
+                &self.0
+            }
+        }
+
+        impl #params ::core::ops::DerefMut for #name #args_ {
+            #[inline(always)]
+            fn deref_mut(&mut self) -> &mut Self::Target {
+                &mut self.0
+            }
+        }
+
+        impl #params ::core::convert::From<#inner> for #name #args_ {
+            #[inline]
+            fn from(stepper: #inner) -> Self {
+                Self(stepper)
+            }
+        }
+
+        impl #params #rt::integrate::Integrator for #name #args_ {
+            #[inline]
+            fn step_size(&self) -> f64 {
+                #rt::integrate::Integrator::step_size(&self.0)
+            }
+            #[inline]
+            fn set_step_size(&mut self, h: f64) -> #rt::Result<()> {
+                #rt::integrate::Integrator::set_step_size(&mut self.0, h)
+            }
+            #[inline]
+            fn step_state(&mut self, y: &mut [f64]) -> #rt::Result<#rt::stepper::StepReport> {
+                #rt::integrate::Integrator::step_state(&mut self.0, y)
+            }
+            #[inline]
+            fn energy_of(&self, y: &[f64]) -> ::core::option::Option<f64> {
+                #rt::integrate::Integrator::energy_of(&self.0, y)
+            }
+        }
+    }
+}
+
+/// The name of the runtime stepper a family's types wrap.
+fn inner_name(family: Family) -> &'static str {
+    match family {
+        Family::Ec => "Stepper",
+        Family::Tc | Family::Rknc => "TcStepper",
+    }
+}
+
+/// The path of the runtime stepper a family's types wrap, for doc links.
+fn inner_path(family: Family, rt: &TokenStream) -> String {
+    let rt = rt.to_string().replace(' ', "");
+    match family {
+        Family::Ec => format!("{rt}::stepper::Stepper"),
+        Family::Tc | Family::Rknc => format!("{rt}::second_order::TcStepper"),
     }
 }
 
@@ -188,11 +381,32 @@ mod tests {
         let args: MethodArgs = parse_quote!(pub r = 2, runtime = ::rt);
         let out = expand_str(args);
         assert!(out.contains("pub struct Ec2Kernel"));
+        // Newtypes, not aliases: type errors name `Ec2`, not the runtime's `Stepper`.
         assert!(out.contains(
-            "pub type Ec2 < Sys , const D : usize > = :: rt :: stepper :: Stepper < Ec2Kernel"
+            "pub struct Ec2 < Sys : :: rt :: system :: System , const D : usize > (:: rt :: \
+             stepper :: Stepper < Ec2Kernel , Sys , :: rt :: stepper :: StaticBuffers < D , \
+             2usize , 2usize >>) ;"
         ));
-        assert!(out.contains("StaticBuffers < D , 2usize , 2usize >"));
-        assert!(out.contains("pub type Ec2Dyn < Sys >"));
+        assert!(out.contains(
+            "pub struct Ec2Dyn < Sys : :: rt :: system :: System > (:: rt :: stepper :: Stepper \
+             < Ec2Kernel , Sys , :: rt :: stepper :: VecBuffers >) ;"
+        ));
+        assert!(!out.contains("type Ec2"));
+        // Constructors, the way to the stepper, and the integrator.
+        assert!(out.contains(
+            "pub fn fixed (system : Sys , h : f64) -> :: rt :: Result < Self > { :: rt :: \
+             stepper :: Stepper :: fixed (system , h) . map (Self) }"
+        ));
+        assert!(out.contains(":: rt :: stepper :: Stepper :: from_kernel (Ec2Kernel , system"));
+        for ty in ["Ec2 < Sys , D >", "Ec2Dyn < Sys >"] {
+            for tr in [
+                ":: core :: ops :: Deref for",
+                ":: core :: ops :: DerefMut for",
+                ":: rt :: integrate :: Integrator for",
+            ] {
+                assert!(out.contains(&format!("{tr} {ty}")), "{tr} {ty}");
+            }
+        }
         // Constants emitted bit-exactly.
         assert!(out.contains("0.2113248654051871f64"));
         // Unrolled moments: W[1][1] appears, no loop over j.
@@ -207,6 +421,8 @@ mod tests {
         assert_eq!((args.r, args.s), (3, 5));
         let out = expand_str(args);
         assert!(out.contains("pub (crate) struct FooKernel"));
+        assert!(out.contains("pub (crate) struct Foo < Sys"));
+        assert!(out.contains("pub (crate) struct FooDyn < Sys"));
         assert!(out.contains("StaticBuffers < D , 5usize , 3usize >"));
         let args: MethodArgs = parse_quote!(r = 3, s = 5, runtime = ::rt);
         assert_eq!(args.name.to_string(), "Ec3S5");
@@ -217,12 +433,21 @@ mod tests {
     fn second_order_families() {
         let out = expand_str(parse_quote!(r = 2, family = tc, runtime = ::rt));
         assert!(out.contains(
-            "type Tc2 < Sys , const N : usize > = :: rt :: second_order :: TcStepper < Sys , \
-             Tc2Kernel , :: rt :: stepper :: StaticBuffers < N , 2usize , 2usize , 2 > , >"
+            "struct Tc2 < Sys : :: rt :: second_order :: SecondOrderSystem , const N : usize > \
+             (:: rt :: second_order :: TcStepper < Sys , Tc2Kernel , :: rt :: stepper :: \
+             StaticBuffers < N , 2usize , 2usize , 2 >>) ;"
         ));
-        assert!(out.contains("type Tc2Dyn < Sys >"));
+        assert!(out.contains(
+            "struct Tc2Dyn < Sys : :: rt :: second_order :: SecondOrderSystem > (:: rt :: \
+             second_order :: TcStepper < Sys , Tc2Kernel , :: rt :: stepper :: VecBuffers >) ;"
+        ));
+        assert!(out.contains(":: rt :: second_order :: TcStepper :: fixed (system , h)"));
+        assert!(out.contains(":: rt :: integrate :: Integrator for Tc2 < Sys , N >"));
         let out = expand_str(parse_quote!(r = 2, family = rknc, runtime = ::rt));
-        assert!(out.contains("type Rknc2 < Sys , const N : usize >"));
+        assert!(out.contains(
+            "struct Rknc2 < Sys : :: rt :: second_order :: SecondOrderSystem , const N : usize >"
+        ));
+        assert!(out.contains("struct Rknc2Dyn < Sys"));
         // The RKN tableau comes with the RKNC kernel.
         assert!(out.contains("pub const ABAR"));
     }

@@ -1,6 +1,7 @@
-//! The ECrP stepper (paper eq. `PEEPCr`, DESIGN.md §2) for any r and s ≥ r.
+//! The ECrP stepper (paper eq. `PEEPCr`; `docs/method.md#ecrp`) for any r and s ≥ r.
 //!
-//! DESIGN.md §2 writes the method with the moments `G_k = Σ_j w_kj g(Y_j)` and the φ-functions.
+//! The moment form of the method (`docs/method.md#moment-form`) uses the moments
+//! `G_k = Σ_j w_kj g(Y_j)` and the φ-functions.
 //! The stepper evaluates the same method regrouped by Legendre degree, which is well-conditioned
 //! for every r (the w-form loses `log₁₀ max|w_kj|` digits: 7 at r = 8, 13 at r = 12):
 //!

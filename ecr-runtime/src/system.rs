@@ -403,7 +403,8 @@ impl<GV: Fn(&[f64], &mut [f64]), V: Fn(&[f64]) -> f64> System for Hamiltonian<GV
     }
 }
 
-/// Gradient flow y' = −∇U(y), U(y) = ½yᵀMy + V(y) (paper §7, with Q = −I: DESIGN.md erratum):
+/// Gradient flow y' = −∇U(y), U(y) = ½yᵀMy + V(y) (paper §7, with Q = −I:
+/// `docs/errata.md#e3-gradient-flow-sign`):
 /// A = −M (symmetric, so its φ-functions come from one eigendecomposition), g = −∇V,
 /// and U is a Lyapunov function.
 pub struct GradientFlow<GV, V = fn(&[f64]) -> f64> {

@@ -1,6 +1,6 @@
 //! For A = 0 the ECrP stepper with r moments and s Gauss–Legendre points is HBVM(s, r)
 //! (Brugnano–Iavernaro–Trigiante 2010), and for s = r plain Gauss collocation
-//! (DESIGN.md §2). This file checks that claim against an INDEPENDENT plain-f64
+//! (`docs/method.md#hbvm`). This file checks that claim against an INDEPENDENT plain-f64
 //! implementation of both methods written here (own Gauss nodes, own Butcher matrix, own
 //! fixed-point solver; nothing from ecr-runtime's tables or stepper), and checks the
 //! energy-conservation property of HBVM for polynomial Hamiltonians.

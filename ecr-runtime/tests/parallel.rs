@@ -156,14 +156,12 @@ ecr_runtime::ecr_method!(r = 3);
 /// kernel's steps).
 #[test]
 fn macro_kernel_steps_are_bit_identical() {
-    use ecr_runtime::stepper::Stepper;
     let p = Nls::new(1 << 10).unwrap();
     let h = 1.0 / 200.0;
     let settings = |min| with_threshold(SolverSettings::default(), min);
     let mut serial: Ec3Dyn<_> =
-        Stepper::from_kernel(Ec3Kernel, p.system().unwrap(), h, settings(usize::MAX)).unwrap();
-    let mut par: Ec3Dyn<_> =
-        Stepper::from_kernel(Ec3Kernel, p.system().unwrap(), h, settings(0)).unwrap();
+        Ec3Dyn::with_settings(p.system().unwrap(), h, settings(usize::MAX)).unwrap();
+    let mut par: Ec3Dyn<_> = Ec3Dyn::with_settings(p.system().unwrap(), h, settings(0)).unwrap();
     let mut run_time = EcStepper::with_nodes(p.system().unwrap(), 3, 3, h, settings(0)).unwrap();
     let (mut a, mut b, mut c) = (p.initial_value(), p.initial_value(), p.initial_value());
     for n in 0..10 {

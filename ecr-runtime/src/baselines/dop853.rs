@@ -1,6 +1,6 @@
 //! DOP853 (Dormand–Prince 8(5,3), Hairer–Nørsett–Wanner), from the `ode_solvers` crate, used
 //! the way its users use it: what many users would pick instead of an exponential method
-//! (DESIGN.md §5).
+//! (`docs/architecture.md#baselines`).
 //!
 //! [`Dop853::integrate`] is **one call of the crate over [t0, T]**: its own step-size control
 //! from the initial-step heuristic to the end, no restarts, and the state in a fixed-size

@@ -1,6 +1,6 @@
 //! ETDRK4: the fourth-order exponential time-differencing Runge–Kutta method of Cox and
 //! Matthews (J. Comput. Phys. 176 (2002) 430–455, §2: the formulas for aₙ, bₙ, cₙ, uₙ₊₁) for `y' = Ay + g(y)`
-//! (DESIGN.md §5: the NLS users' other choice).
+//! (the NLS users' other choice: `docs/architecture.md#baselines`).
 //!
 //! With `N = g` and `φ_k = φ_k(hA)`, `φ_k^½ = φ_k(hA/2)`:
 //!

@@ -1,4 +1,5 @@
-//! Explicit exponential integrators the paper compares against (DESIGN.md §5).
+//! Explicit exponential integrators the paper compares against
+//! (`docs/architecture.md#baselines`).
 //!
 //! * [`Exprb43`]: the exponential Rosenbrock method *exprb43* of Hochbruck, Ostermann and
 //!   Schweitzer (SIAM J. Numer. Anal. 47, 2009), the paper's "EEI3s4": explicit, three stages,

@@ -1,5 +1,5 @@
-//! Baseline methods the paper compares with (DESIGN.md §5), sharing the system and operator
-//! types, each an [`crate::integrate::Integrator`].
+//! Baseline methods the paper compares with (`docs/architecture.md#baselines`), sharing the
+//! system and operator types, each an [`crate::integrate::Integrator`].
 //!
 //! The paper's peers: [`collocation`] (RKEPC2, HBVM, Gauss, AVF, exponential AVF),
 //! [`exponential`] (EEI3s4 = exprb43, Hochbruck–Ostermann), [`krylov`], [`dop853`]. What users

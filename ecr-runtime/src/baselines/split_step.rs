@@ -1,4 +1,5 @@
-//! Split-step Fourier methods for NLS-type systems (DESIGN.md §5: what NLS users pick).
+//! Split-step Fourier methods for NLS-type systems (what NLS users pick:
+//! `docs/architecture.md#baselines`).
 //!
 //! For `ψ = p + iq ∈ ℂⁿ`, stored as `y = (p, q) ∈ ℝ²ⁿ`,
 //!

@@ -1,5 +1,5 @@
-//! Splitting methods with the exact linear flow, composed to high order (DESIGN.md §5: what
-//! users of oscillatory Hamiltonians with a stiff linear part pick).
+//! Splitting methods with the exact linear flow, composed to high order (what users of
+//! oscillatory Hamiltonians with a stiff linear part pick: `docs/architecture.md#baselines`).
 //!
 //! * [`composition`]: symmetric compositions `Ψ_h = Φ_{γ_s h} ∘ … ∘ Φ_{γ_1 h}` of a symmetric
 //!   order-2 base method Φ (Σγᵢ = 1, γᵢ = γ_{s+1−i}) of orders 2, 4, 6 and 8.

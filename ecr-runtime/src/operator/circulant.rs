@@ -535,7 +535,7 @@ impl SkewGenerator for Circulant {
     /// spectrum exact: `λ_k = λ_{n−k}` (mathematically equal; the FFT rounds the two apart, by
     /// up to 256 ulps of the small ones for the NLS's D₂ at n = 128) is set to the mean of the
     /// two computed values. So the two modes of a wave number evolve alike, and the banks
-    /// evaluate their functions once for both ([`Distinct`]).
+    /// evaluate their functions once for both (once per distinct eigenvalue).
     ///
     /// # Errors
     /// [`Error::InvalidInput`] if `c[j] ≠ c[(n − j) mod n]` beyond a relative `1e−12`.

@@ -57,7 +57,7 @@ pub(super) fn gemv_tr(y: &mut [f64], m: &DMatrix<f64>, x: &[f64]) {
 }
 
 /// A general dense matrix `A` (non-normal allowed); φ by scaling and modified squaring
-/// ([`phi_dense`]).
+/// ([`phi_dense`](crate::phi::phi_dense)).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Dense {
     a: DMatrix<f64>,

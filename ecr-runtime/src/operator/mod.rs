@@ -2,7 +2,7 @@
 //!
 //! A [`LinearOperator`] applies `A` and, once per step size, precomputes a [`PhiBank`]: the
 //! operators `φ_k(τ_i h A)` (paper eq. `phi`) for the nodes `τ_i` and `k = 0..=p`. The ECrP
-//! stepper (paper eq. `EEPCr` with Gauss nodes; DESIGN.md §2) needs exactly
+//! stepper (paper eq. `EEPCr` with Gauss nodes; `docs/method.md#moment-form`) needs exactly
 //!
 //! ```text
 //! Y_i = φ₀(c_i hA) y₀ + h Σ_k c_i^{k+1} φ_{k+1}(c_i hA) G_k
@@ -318,7 +318,8 @@ pub trait PhiBank {
     /// out_j = φ₀(τ_i hA) y0 + Σ_{k=0}^{m−1} coef[j·m + k] · φ_{k+1}(τ_i hA) g[k·d..(k+1)·d]
     /// ```
     ///
-    /// where `m = g.len()/d ≤ p` (DESIGN.md §2: the stage and step formulas of ECrP). Does not
+    /// where `m = g.len()/d ≤ p` (the stage and step formulas of ECrP:
+    /// `docs/method.md#stage-equations`, `#step-formula`). Does not
     /// allocate.
     ///
     /// # Panics

@@ -18,7 +18,8 @@ fn mul_dd(eh: f64, el: f64, y: f64) -> (f64, f64) {
     two_sum(p, e + el * y)
 }
 
-/// `A = 0` in dimension `dim`: `φ_k(τhA) = I/k!` (the method reduces to HBVM, DESIGN.md §2).
+/// `A = 0` in dimension `dim`: `φ_k(τhA) = I/k!` (the method reduces to HBVM,
+/// `docs/method.md#hbvm`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Zero {
     dim: usize,

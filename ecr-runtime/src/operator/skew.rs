@@ -62,7 +62,7 @@ pub trait SkewGenerator: LinearOperator {
 /// `A = [[0, −C], [C, 0]]` of size 2n acting on `y = (p, q)`, C real symmetric.
 ///
 /// With `u = p + i q`, `A y ↔ i C u`, hence `φ_k(τhA) y ↔ φ_k(iτhC) u = V φ_k(iτhΛ) V⁻¹ u`:
-/// banks store the complex numbers `φ_k(iτ_i h λ_m)` ([`phi_complex`] on the imaginary axis),
+/// banks store the complex numbers `φ_k(iτ_i h λ_m)` ([`phi_complex`](crate::phi::phi_complex) on the imaginary axis),
 /// and `combine` transforms each input once and each output block once (one complex FFT each
 /// for a circulant C). This is the linear part of the cubic nonlinear Schrödinger equation with
 /// C = D₂, the pseudospectral second-derivative matrix.

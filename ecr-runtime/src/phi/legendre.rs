@@ -3,7 +3,8 @@
 //!
 //! # Why
 //!
-//! DESIGN.md §2 writes a stage as `h Σ_k τ^{k+1} φ_{k+1}(τhA) G_k` with the moments
+//! The moment form of ECrP (`docs/method.md#moment-form`) writes a stage as
+//! `h Σ_k τ^{k+1} φ_{k+1}(τhA) G_k` with the moments
 //! `G_k = Σ_j w_kj g(Y_j)`. Both factors are large and cancel: `|w_kj|` reaches 1.4e7 at r = 8
 //! (the monomial coefficients `c_jk` of P̃_j grow like 6^j), so the f64 rounding of the weights,
 //! of `G_k` and of the φ-functions leaves an error of `1e−9 |g|` in the stage. Regrouped by

@@ -1,6 +1,6 @@
 //! The φ-functions of exponential integrators, for scalars and matrices.
 //!
-//! Definitions (paper eq. `phi`, §6; DESIGN.md §2):
+//! Definitions (paper eq. `phi`, §8.1; `docs/method.md#phi-functions`):
 //!
 //! ```text
 //! φ₀(z) = eᶻ,   φ_k(z) = ∫₀¹ e^{(1−θ)z} θ^{k−1}/(k−1)! dθ = Σ_{n≥0} zⁿ/(n+k)!   (k ≥ 1)

@@ -401,9 +401,9 @@ fn upward_scaled<T: Field>(z: T, out: &mut [T]) {
 
 /// φ₀(z), …, φ_{n−1}(z) for real `z`: `out[k] = φ_k(z)`, `n = out.len()`.
 ///
-/// `φ₀(z) = eᶻ` and `φ_k(z) = Σ_{n≥0} zⁿ/(n+k)!` (DESIGN.md §2), all orders at once, with a
-/// relative error below 1e−14 for `k ≤ 12` and `1e−16 ≤ |z| ≤ 1e12` (measured in
-/// tests/phi.rs; see the module documentation for the method).
+/// `φ₀(z) = eᶻ` and `φ_k(z) = Σ_{n≥0} zⁿ/(n+k)!` (`docs/method.md#phi-functions`), all orders
+/// at once, with a relative error below 1e−14 for `k ≤ 12` and `1e−16 ≤ |z| ≤ 1e12` (measured
+/// in tests/phi.rs; see the module documentation for the method).
 ///
 /// Extremes: for large negative `z`, `e^z` underflows gracefully to 0 while `φ_k(z) ≈
 /// 1/((k−1)!|z|)`; for large positive `z` values beyond `f64::MAX` are `+∞`; `φ_k(−∞) = 0`,
@@ -432,10 +432,11 @@ pub fn phi_complex(z: Complex64, out: &mut [Complex64]) {
 /// The trigonometric φ-functions `out[m] = φᵗ_m(K) = Σ_{l≥0} (−K)^l/(2l+m)!`.
 ///
 /// With `K = θ²`: `φᵗ₀ = cos θ`, `φᵗ₁ = sin θ/θ`, `φᵗ₂ = (1 − cos θ)/θ² = ½ (sin(θ/2)/(θ/2))²`
-/// and `φᵗ_{m+2}(K) = (1/m! − φᵗ_m(K))/K` (DESIGN.md §2, TCr). These three closed forms are
-/// used for m ≤ 2 (accurate even next to their zeros), then the upward recurrence where it
-/// is stable (`θ` large compared with m) and the downward one `φᵗ_m = 1/m! − K φᵗ_{m+2}` from
-/// a Taylor series elsewhere, chosen per m by error bound as for [`phi_real`].
+/// and `φᵗ_{m+2}(K) = (1/m! − φᵗ_m(K))/K` (`docs/method.md#phi-functions`, TCrP). These three
+/// closed forms are used for m ≤ 2 (accurate even next to their zeros), then the upward
+/// recurrence where it is stable (`θ` large compared with m) and the downward one
+/// `φᵗ_m = 1/m! − K φᵗ_{m+2}` from a Taylor series elsewhere, chosen per m by error bound as
+/// for [`phi_real`].
 ///
 /// `K < 0` is accepted: `φᵗ_m(−θ²) = ½ (φ_m(θ) + φ_m(−θ))` (hyperbolic case). `K = +∞` and NaN
 /// give NaN, `K = −∞` gives `+∞`.

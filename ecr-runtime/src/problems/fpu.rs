@@ -31,8 +31,8 @@ use crate::{Error, Result};
 /// (immaterial under the fourth power). With `q = (x₀, x₁)` and `p = (y₀, y₁)` the slices of every method below are
 /// laid out in exactly that order: entries `0..m` are `x₀`, entries `m..2m` are `x₁`.
 ///
-/// The first-order form (paper §3; DESIGN §2 "TCr") is `y' = Ay + g(y)` with `y = (q, p)`,
-/// `A = [[0, I], [−Ω, 0]]` and `g(y) = (0, −∇U(q))`, i.e. `y' = Q∇H` with
+/// The first-order form (paper §3; `docs/method.md#second-order`) is `y' = Ay + g(y)` with
+/// `y = (q, p)`, `A = [[0, I], [−Ω, 0]]` and `g(y) = (0, −∇U(q))`, i.e. `y' = Q∇H` with
 /// `Q = [[0, I], [−I, 0]]`, `M = diag(Ω, I)`, `V(q, p) = U(q)`.
 ///
 /// The oscillatory energy `I = Σⱼ Iⱼ`, `Iⱼ = ½(y₁,ⱼ² + ω²x₁,ⱼ²)` (GNI (I.5.3), §XIII.2.1), is an

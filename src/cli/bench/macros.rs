@@ -10,7 +10,6 @@ use ecr_runtime::ecr_method;
 use ecr_runtime::nalgebra::{DMatrix, SMatrix};
 use ecr_runtime::operator::DenseStatic;
 use ecr_runtime::problems::{Duffing, Nls, Wind};
-use ecr_runtime::stepper::Stepper;
 use ecr_runtime::system::Semilinear;
 
 ecr_method!(r = 1);
@@ -59,7 +58,7 @@ macro_rules! static_series {
         let g = $g;
         let mut v = Vec::new();
         macro_rules! one {
-            ($r:literal, $kernel:ident, $ty:ident) => {{
+            ($r:literal, $ty:ident) => {{
                 let (a, g) = (a.clone(), g.clone());
                 let (a2, g2) = (a.clone(), g.clone());
                 v.push(series(
@@ -68,7 +67,7 @@ macro_rules! static_series {
                     $group,
                     Box::new(move |h| {
                         let sys = Semilinear::new(static_2x2(&a)?, g.clone());
-                        let st: $ty<_, 2> = Stepper::from_kernel($kernel, sys, h, solver())?;
+                        let st: $ty<_, 2> = $ty::with_settings(sys, h, solver())?;
                         stepped(boxed(Ok(st)))
                     }),
                     Box::new(move |states, n, repeats| {
@@ -78,12 +77,12 @@ macro_rules! static_series {
                 ));
             }};
         }
-        one!(1, Ec1Kernel, Ec1);
-        one!(2, Ec2Kernel, Ec2);
-        one!(3, Ec3Kernel, Ec3);
-        one!(4, Ec4Kernel, Ec4);
-        one!(5, Ec5Kernel, Ec5);
-        one!(6, Ec6Kernel, Ec6);
+        one!(1, Ec1);
+        one!(2, Ec2);
+        one!(3, Ec3);
+        one!(4, Ec4);
+        one!(5, Ec5);
+        one!(6, Ec6);
         v
     }};
 }
@@ -114,14 +113,14 @@ pub fn wind_series(w: &Wind, h0: f64) -> Vec<Series> {
 pub fn nls_series(n: &Nls, h0: f64) -> Vec<Series> {
     let mut v = Vec::new();
     macro_rules! one {
-        ($r:literal, $kernel:ident, $ty:ident) => {{
+        ($r:literal, $ty:ident) => {{
             let (n, m) = (n.clone(), n.clone());
             v.push(series(
                 $r,
                 h0,
                 "ECrP circulant",
                 Box::new(move |h| {
-                    let st: $ty<_> = Stepper::from_kernel($kernel, n.system()?, h, solver())?;
+                    let st: $ty<_> = $ty::with_settings(n.system()?, h, solver())?;
                     stepped(boxed(Ok(st)))
                 }),
                 Box::new(move |states, count, repeats| {
@@ -130,11 +129,11 @@ pub fn nls_series(n: &Nls, h0: f64) -> Vec<Series> {
             ));
         }};
     }
-    one!(1, Ec1Kernel, Ec1Dyn);
-    one!(2, Ec2Kernel, Ec2Dyn);
-    one!(3, Ec3Kernel, Ec3Dyn);
-    one!(4, Ec4Kernel, Ec4Dyn);
-    one!(5, Ec5Kernel, Ec5Dyn);
-    one!(6, Ec6Kernel, Ec6Dyn);
+    one!(1, Ec1Dyn);
+    one!(2, Ec2Dyn);
+    one!(3, Ec3Dyn);
+    one!(4, Ec4Dyn);
+    one!(5, Ec5Dyn);
+    one!(6, Ec6Dyn);
     v
 }
