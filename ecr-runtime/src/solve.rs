@@ -23,17 +23,16 @@
 //! # How the method is chosen
 //!
 //! With a tolerance (the default, [`Method::Auto`]) the solver pilots a few orders r (s = r
-//! Gauss–Legendre points), starting from about one more r per two decades of tolerance
-//! (r = 3 at 1e−4, r = 6 at 1e−10) and moving up or down while the predicted cost falls,
-//! within [`Options::orders`] (default 2..=6). A pilot integrates a window from t₀ of
-//! [`PILOT_STEPS`] steps of h (at most the span) with h and with 2h: their difference at the
-//! common points over 2^{2r} − 1 (Richardson) estimates the global error of the run with h.
-//! How that estimate grows over the window (E ∝ t^α, α from its second half against its
-//! first, within [0, 2]: α = 1 for the phase error of a conservative problem, 0 for a
-//! damped one) extrapolates it to t_end, and h is scaled by the order 2r so that the
-//! extrapolated error is half the tolerance in the scaled max-norm
-//! `max_i |e_i| / (atol + rtol |y_i|)`. The estimate is trusted once two windows at
-//! different h agree with E ∝ h^{2r}. The order with the fewest predicted evaluations of g
+//! Gauss–Legendre points). It starts from about one more r per two decades of tolerance
+//! (r = 3 at 1e−4, r = 6 at 1e−10) and moves up or down while the predicted cost falls, within
+//! [`Options::orders`] (default 2..=6). A pilot integrates the first [`PILOT_SHARE`] of the
+//! span with steps h₀, h₀/2, h₀/4, … on nested grids; each run against the one before, over
+//! 2^{2r} − 1 (Richardson), estimates the finer run's global error (its largest value over
+//! the window). The estimate is trusted once it has fallen by 2^{2r} (within a factor 4) twice
+//! in a row; it is then extrapolated to t_end linearly in time (the phase error of a
+//! conservative problem; an overestimate for a damped one), and h is scaled by the order so
+//! that the predicted error is half the tolerance in the scaled max-norm
+//! `max_i |e_i| / (atol + rtol |y_i|)`. The order with the fewest predicted evaluations of g
 //! over the run wins, and the integration runs at its fixed h. A fixed step keeps ECrP's
 //! long-time behaviour; a varying one does not. On Duffing ω = 20 with EC6P and 10⁶ steps
 //! around h = 0.0576, the largest relative energy error was:
