@@ -859,6 +859,8 @@ struct DenseStepper<'a, S: System> {
     r: usize,
     settings: SolverSettings,
     stepper: Option<EcStepper<&'a S>>,
+    /// Steps taken and their g-evaluations, over the run and `Solution::at`.
+    evals: (usize, usize),
 }
 
 impl<'a, S: System> DenseStepper<'a, S> {
@@ -868,6 +870,7 @@ impl<'a, S: System> DenseStepper<'a, S> {
             r,
             settings,
             stepper: None,
+            evals: (0, 0),
         }
     }
 
@@ -895,6 +898,8 @@ impl<'a, S: System> DenseStepper<'a, S> {
         let rep = stepper.step(out)?;
         stats.dense_evals += 1;
         stats.dense_g_evals += rep.g_evals;
+        self.evals.0 += 1;
+        self.evals.1 += rep.g_evals;
         Ok(())
     }
 
@@ -1122,6 +1127,12 @@ impl<S: System> Solution<'_, S> {
                 .map(|e| (e - e0).abs() / scale)
                 .fold(0.0, f64::max),
         )
+    }
+
+    /// Steps taken to evaluate the solution between grid points, and their evaluations of g:
+    /// during the run (as in [`Stats`]) and by [`at`](Self::at) since.
+    pub fn dense_evaluations(&self) -> (usize, usize) {
+        self.dense.borrow().evals
     }
 
     /// The last output state.
