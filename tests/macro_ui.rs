@@ -1,4 +1,7 @@
 //! Every misuse of `ecr_method!` is a compile error on the offending token.
+//!
+//! The cases live here rather than in `ecr-macros`, so that the macro crate needs no
+//! dev-dependency on the runtime that depends on it.
 
 #[test]
 fn ui() {
