@@ -72,7 +72,8 @@ pub trait TestProblem {
     /// g at several states, block `skip` of `out` left as it is (what
     /// [`System::nonlinear_stages`](ecr_runtime::system::System::nonlinear_stages) of a
     /// [`ProblemSystem`] does): one after another by default; the built-in problems evaluate
-    /// them concurrently ([`nonlinear_concurrent`](ecr_runtime::system::nonlinear_concurrent)).
+    /// them concurrently, one task per state on rayon's pool (as
+    /// [`nonlinear_concurrent`](ecr_runtime::system::nonlinear_concurrent) does for a system).
     fn nonlinear_stages(&self, ys: &[f64], out: &mut [f64], skip: Option<usize>) {
         let d = self.dim();
         for (j, (y, o)) in ys.chunks_exact(d).zip(out.chunks_exact_mut(d)).enumerate() {
@@ -113,11 +114,14 @@ macro_rules! forward_test_problem {
             fn nonlinear_stages(&self, ys: &[f64], out: &mut [f64], skip: Option<usize>) {
                 use rayon::prelude::*;
                 let d = <$ty>::dim(self);
-                out.par_chunks_mut(d).enumerate().for_each(|(j, o)| {
-                    if skip != Some(j) {
-                        <$ty>::nonlinear(self, &ys[j * d..(j + 1) * d], o);
-                    }
-                });
+                out.par_chunks_mut(d)
+                    .enumerate()
+                    .with_max_len(1)
+                    .for_each(|(j, o)| {
+                        if skip != Some(j) {
+                            <$ty>::nonlinear(self, &ys[j * d..(j + 1) * d], o);
+                        }
+                    });
             }
             fn grad_v(&self, y: &[f64], out: &mut [f64]) {
                 <$ty>::grad_v(self, y, out)
