@@ -14,10 +14,10 @@
 //! NLS on 512 × 512; and, to compare with, 500 steps of the NLS run (T = 10, r = 5, h = 0.02).
 
 use criterion::{BatchSize, BenchmarkId, Criterion, criterion_group, criterion_main};
+use ecr::problems::{Nls, Nls2d};
 use ecr::runtime::operator::{
     Circulant, Dense, DenseStatic, Diagonal, LinearOperator, PhiBank, Scalar, SkewPair, Symmetric,
 };
-use ecr::runtime::problems::{Nls, Nls2d};
 use ecr::runtime::stepper::{EcStepper, SolverSettings};
 use ecr::runtime::system::System;
 use nalgebra::{DMatrix, SMatrix};

@@ -19,7 +19,7 @@
 //! EC3P: where the concurrent path starts to pay, which sets `PARALLEL_MIN_DIM`); a number
 //! sets the rounds (default 20).
 
-use ecr::runtime::problems::{Nls, Nls2d};
+use ecr::problems::{Nls, Nls2d};
 use ecr::runtime::stepper::{EcStepper, Predictor, SolverSettings};
 use ecr::runtime::system::System;
 use std::hint::black_box;

@@ -18,8 +18,8 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use ecr::ecr_method;
+use ecr::problems::{Duffing, Wind};
 use ecr::runtime::operator::{Dense, DenseStatic, PhiBank};
-use ecr::runtime::problems::{Duffing, Wind};
 use ecr::runtime::stepper::{EcStepper, Kernel, SolverSettings, gemv_cm};
 use ecr::runtime::system::Semilinear;
 use nalgebra::{DMatrix, SMatrix};
@@ -173,7 +173,7 @@ const CASE_STEPS: usize = 1000;
 
 /// Duffing ω = 20, r = 6, h = 1/16 and FPU TCrP r = 3: macro vs run-time vs g-evaluation cost.
 fn issue_cases(c: &mut Criterion) {
-    use ecr::runtime::problems::Fpu;
+    use ecr::problems::Fpu;
     use ecr::runtime::second_order::TcStepper;
     let d = Duffing::new(20.0, 0.07).unwrap();
     let h = 1.0 / 16.0;

@@ -5,8 +5,8 @@
 //! Run: `cargo run --release --example duffing_ec3`
 
 use ecr::ecr_method;
+use ecr::problems::Duffing;
 use ecr::runtime::operator::DenseStatic;
-use ecr::runtime::problems::Duffing;
 use ecr::runtime::system::Semilinear;
 use nalgebra::SMatrix;
 

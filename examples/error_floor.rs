@@ -18,7 +18,7 @@
 //!
 //! Run: `cargo run --release --example error_floor`.
 
-use ecr::runtime::problems::{Duffing, Fpu};
+use ecr::problems::{Duffing, Fpu};
 use ecr::runtime::second_order::{Omega, SecondOrder, SecondOrderSystem, TcStepper};
 use ecr::runtime::stepper::{EcStepper, RuntimeKernel, SolverSettings};
 

@@ -9,8 +9,8 @@
 //! Run: `cargo run --release --example long_run -- [STEPS] [R] [H] [TOL]` (defaults 1e7, 3,
 //! 0.01 and the stage solver's default tolerance; 10–20 s per problem at 1e7 steps).
 
+use ecr::problems::{Duffing, Wind};
 use ecr::runtime::integrate::{IntegrateOptions, integrate};
-use ecr::runtime::problems::{Duffing, Wind};
 use ecr::runtime::stepper::{EcStepper, SolverSettings};
 use ecr::runtime::system::System;
 use std::time::Instant;

@@ -3,7 +3,7 @@
 //! k = 0.07 (the benchmark's problem) and ω = 5 (the long-run problem), over t ∈ [0, 100]:
 //! `cargo run --release --example sweeps`.
 
-use ecr::runtime::problems::Duffing;
+use ecr::problems::Duffing;
 use ecr::runtime::stepper::{EcStepper, Predictor, SolverSettings};
 
 fn mean_sweeps(d: &Duffing, r: usize, h: f64, predictor: Predictor) -> Result<f64, String> {

@@ -3,7 +3,7 @@
 //! (one stepper per size, so no φ-bank is rebuilt per step), as a step-size controller would.
 //!
 //! Run: `cargo run --release --example variable_step`
-use ecr::runtime::problems::Duffing;
+use ecr::problems::Duffing;
 use ecr::runtime::stepper::EcStepper;
 
 fn main() -> ecr::runtime::Result<()> {

@@ -4,7 +4,7 @@
 use std::ops::ControlFlow;
 
 use ecr::runtime::integrate::{IntegrateOptions, integrate};
-use ecr::runtime::problems::{Duffing, Nls, Wind};
+use ecr::problems::{Duffing, Nls, Wind};
 use ecr::runtime::solve::{Direction, Event, Options, Problem, Status};
 use ecr::runtime::stepper::EcStepper;
 use ecr::runtime::system::System;
@@ -165,7 +165,7 @@ fn even_output_times_are_grid_values() {
 fn events_are_located_to_the_tolerance() {
     let d = Duffing::default();
     let problem = Problem::new(d.system().unwrap(), d.initial_value(), (0.0, 5.0)).unwrap();
-    let k = ecr::runtime::special::elliptic_k(d.elliptic_parameter()).unwrap();
+    let k = ecr::special::elliptic_k(d.elliptic_parameter()).unwrap();
     let half_period = 2.0 * k / d.omega();
     let options = Options::tolerance(1e-10)
         .event(Event::new(|_, y| y[0]).direction(Direction::Falling))

@@ -108,16 +108,13 @@
 //! the crates and data flow in `docs/architecture.md`.
 #![deny(missing_docs)]
 
-pub mod baselines;
 mod concurrent;
 pub mod error;
 pub mod integrate;
 pub mod operator;
 pub mod phi;
-pub mod problems;
 pub mod second_order;
 pub mod solve;
-pub mod special;
 pub mod stepper;
 mod storage;
 pub mod system;
@@ -186,28 +183,40 @@ extern crate self as ecr_runtime;
 ///
 /// ```
 /// use ecr_runtime::ecr_method;
-/// use ecr_runtime::operator::DenseStatic;
+/// use ecr_runtime::operator::{Dense, DenseStatic};
+/// use ecr_runtime::stepper::EcStepper;
 /// use ecr_runtime::system::Semilinear;
-/// use nalgebra::SMatrix;
+/// use nalgebra::{DMatrix, SMatrix};
 ///
 /// ecr_method!(r = 3);
 ///
-/// // Duffing: q'' = −(ω² + k²) q + 2k² q³ as y' = Ay + g(y), y = (q, p).
+/// // Duffing: q'' = −(ω² + k²) q + 2k² q³ as y' = Ay + g(y), y = (q, p), with the energy
+/// // H = ½p² + ½(ω² + k²)q² − ½k²q⁴.
 /// let (omega, k) = (5.0_f64, 0.07_f64);
-/// let a = SMatrix::<f64, 2, 2>::new(0.0, 1.0, -(omega * omega + k * k), 0.0);
+/// let w2 = omega * omega + k * k;
+/// let a = [0.0, 1.0, -w2, 0.0]; // row by row
 /// let g = move |y: &[f64], out: &mut [f64]| {
 ///     out[0] = 0.0;
 ///     out[1] = 2.0 * k * k * y[0].powi(3);
 /// };
-/// let system = Semilinear::new(DenseStatic::new(a).unwrap(), g);
+/// let energy = |y: &[f64]| {
+///     0.5 * y[1] * y[1] + 0.5 * w2 * y[0] * y[0] - 0.5 * k * k * y[0].powi(4)
+/// };
+/// let a_static = SMatrix::<f64, 2, 2>::from_row_slice(&a);
+/// let system = Semilinear::new(DenseStatic::new(a_static).unwrap(), g);
 /// let mut stepper: Ec3<_, 2> = Ec3::fixed(system, 0.01).unwrap();
-/// let mut y = [0.0, omega];
+/// // The run-time stepper of the same order and h, on the same problem.
+/// let system = Semilinear::new(Dense::new(DMatrix::from_row_slice(2, 2, &a)).unwrap(), g);
+/// let mut run_time = EcStepper::new(system, 3, 0.01).unwrap();
+/// let (mut y, mut z) = ([0.0, omega], vec![0.0, omega]);
 /// for _ in 0..100 {
 ///     stepper.step(&mut y).unwrap();
+///     run_time.step(&mut z).unwrap();
 /// }
-/// // Order 6: at t = 1 the error against the exact q = sn(ωt; m = (k/ω)²) is ~1e-13.
-/// let exact = ecr_runtime::problems::Duffing::new(omega, k).unwrap().exact(1.0).unwrap();
-/// assert!((y[0] - exact[0]).abs() < 1e-11 && (y[1] - exact[1]).abs() < 1e-10);
+/// // Bit for bit the same steps as the run-time stepper, and H = 12.5 kept to a few ulps
+/// // (5e-15 here; 1e-12 leaves room for other platforms' libm).
+/// assert_eq!(y.map(f64::to_bits), [z[0].to_bits(), z[1].to_bits()]);
+/// assert!((energy(&y) - energy(&[0.0, omega])).abs() < 1e-12);
 /// assert_eq!(Ec3Kernel::R, 3);
 /// ```
 ///

@@ -177,10 +177,16 @@ fn stage_fault(g: &[f64], previous: f64) -> Error {
     g_fault(g, previous).map_or_else(|| stages_fault(previous), Error::NonFinite)
 }
 
-/// The error of stage values that became non-finite with g finite (see [`stage_fault`]);
-/// shared by every fixed-point stepper.
+/// The error of a fixed-point stage iteration whose stage values became non-finite with g
+/// finite, `previous` being the scaled update of the sweep before (∞ at the first sweep), as
+/// every stepper here reports it: [`Error::NonFinite`] saying the iteration diverged (try a
+/// smaller h, or [`StageSolver::Newton`]) if that update was already half the stages or more,
+/// else [`Error::Overflow`] of the stage values (the solution itself left the f64 range).
+///
+/// For iterations of one's own that should fail the way the built-in steppers do (as
+/// [`sweeps_converged`] is for their stopping rule).
 #[cold]
-pub(crate) fn stages_fault(previous: f64) -> Error {
+pub fn stages_fault(previous: f64) -> Error {
     if previous.is_finite() && previous >= 0.5 {
         Error::NonFinite(DIVERGED)
     } else {
@@ -394,25 +400,6 @@ impl SolverSettings {
             }
         }
         Ok(())
-    }
-
-    /// `Err(InvalidParameter)` unless the solver is [`StageSolver::FixedPoint`] and the scale
-    /// [`StageScale::Global`] (for steppers without a Newton iteration or a per-component
-    /// stopping rule).
-    pub(crate) fn require_fixed_point(&self, stepper: &str) -> Result<()> {
-        if self.solver != StageSolver::FixedPoint {
-            Err(Error::InvalidParameter(format!(
-                "{stepper} solves its stages by fixed-point sweeps only (StageSolver::Newton is \
-                 implemented for the ECrP stepper and TCrP/RKNCrP)"
-            )))
-        } else if self.scale != StageScale::Global {
-            Err(Error::InvalidParameter(format!(
-                "{stepper} measures its stage updates in the global scale only \
-                 (StageScale::PerComponent is implemented for the ECrP stepper and TCrP/RKNCrP)"
-            )))
-        } else {
-            Ok(())
-        }
     }
 
     /// The paper's setting (§9): tolerance 1e−16, at most 5 sweeps, accepted at the limit,

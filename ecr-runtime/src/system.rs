@@ -36,7 +36,7 @@ pub trait System {
     ///
     /// The default evaluates the states one after another. A system that may be shared
     /// between threads (`Sync`) can have them evaluated concurrently: override this with a
-    /// call of [`nonlinear_concurrent`] (the NLS systems of [`problems`](crate::problems) do),
+    /// call of [`nonlinear_concurrent`] (the NLS systems of `ecr::problems` do),
     /// or wrap the system in [`Concurrent`]. It is the system's choice because the steppers
     /// cannot ask for `Sync` without rejecting systems that are not (stable Rust cannot
     /// specialise on it).

@@ -2,8 +2,8 @@
 
 use super::{UsageError, memory, progress};
 use clap::{Args, ValueEnum};
+use ecr::problems::{Duffing, Fpu, Nls, Wind};
 use ecr_runtime::integrate::{IntegrateOptions, Integrator, Report, integrate};
-use ecr_runtime::problems::{Duffing, Fpu, Nls, Wind};
 use ecr_runtime::second_order::TcStepper;
 use ecr_runtime::stepper::{EcStepper, PARALLEL_MIN_DIM, Predictor, SolverSettings, StageSolver};
 use serde_json::{Value, json};

@@ -6,10 +6,10 @@
 
 use super::sweep::{Family, GCostFn, Knob, Series, solver, stepped, time_g};
 use crate::cli::reproduce::methods::boxed;
+use ecr::problems::{Duffing, Nls, Wind};
 use ecr_runtime::ecr_method;
 use ecr_runtime::nalgebra::{DMatrix, SMatrix};
 use ecr_runtime::operator::DenseStatic;
-use ecr_runtime::problems::{Duffing, Nls, Wind};
 use ecr_runtime::system::Semilinear;
 
 ecr_method!(r = 1);

@@ -16,10 +16,10 @@
 use super::macros::static_system;
 use super::sweep::{K, OMEGA, Series, step_series};
 use crate::cli::reproduce::methods::boxed;
-use ecr_runtime::baselines::etdrk4::Etdrk4;
-use ecr_runtime::baselines::split_step::SplitStep;
-use ecr_runtime::baselines::splitting::{LinearFlowSplitting, RotationSplitting, StormerVerlet};
-use ecr_runtime::problems::{Duffing, Nls, Wind};
+use ecr::baselines::etdrk4::Etdrk4;
+use ecr::baselines::split_step::SplitStep;
+use ecr::baselines::splitting::{LinearFlowSplitting, RotationSplitting, StormerVerlet};
+use ecr::problems::{Duffing, Nls, Wind};
 use ecr_runtime::second_order::{Omega, SecondOrder};
 
 /// The group (figure panel) of the peers.

@@ -1,8 +1,8 @@
 //! Scaling of the cost of a step with the dimension: EC2P with the FFT (circulant) operator on
 //! the 1D NLS, N = 2^7 … 2^16 (d = 2N), and on the 2D NLS, n × n up to 512 × 512 (d = 2n²).
 
+use ecr::problems::{Nls, Nls2d};
 use ecr_runtime::operator::{SkewGenerator, SkewPair};
-use ecr_runtime::problems::{Nls, Nls2d};
 use ecr_runtime::stepper::EcStepper;
 use ecr_runtime::system::System;
 use std::time::Instant;

@@ -6,11 +6,11 @@ use super::{macros, peers};
 use crate::cli::reproduce::methods::{
     self as registry, BoxedIntegrator, Dyn, Problem, boxed, ec, on_system,
 };
-use ecr_runtime::baselines::collocation::{ExpAvf, avf, gauss_collocation, rkepc2};
-use ecr_runtime::baselines::dop853::Dop853;
-use ecr_runtime::baselines::exponential::HochOst4;
+use ecr::baselines::collocation::{ExpAvf, avf, gauss_collocation, rkepc2};
+use ecr::baselines::dop853::Dop853;
+use ecr::baselines::exponential::HochOst4;
+use ecr::problems::{Duffing, Nls, Wind};
 use ecr_runtime::integrate::{IntegrateOptions, integrate};
-use ecr_runtime::problems::{Duffing, Nls, Wind};
 use ecr_runtime::second_order::{SecondOrderForm, TcStepper};
 use ecr_runtime::solve::{Options, Problem as SolveProblem};
 use ecr_runtime::stepper::{EcStepper, Predictor, SolverSettings};

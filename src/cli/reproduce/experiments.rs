@@ -2,8 +2,8 @@
 //! Lyapunov-function study, each over every registered method.
 
 use super::methods::{Dyn, Method, PRIMARY, Problem, ec};
+use ecr::problems::{Duffing, Nls, Wind};
 use ecr_runtime::integrate::{IntegrateOptions, Report, StepPlan, integrate};
-use ecr_runtime::problems::{Duffing, Nls, Wind};
 use ecr_runtime::stepper::SolverSettings;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;

@@ -18,12 +18,12 @@
 //! A method that fails to build or to integrate a problem is reported in `report.md` and left
 //! out of that problem's panels; the other methods still run.
 
-use ecr_runtime::baselines::collocation::rkepc2;
-use ecr_runtime::baselines::dop853::Dop853Stepper;
-use ecr_runtime::baselines::exponential::Exprb43;
-use ecr_runtime::baselines::krylov::Exprb43Krylov;
+use ecr::baselines::collocation::rkepc2;
+use ecr::baselines::dop853::Dop853Stepper;
+use ecr::baselines::exponential::Exprb43;
+use ecr::baselines::krylov::Exprb43Krylov;
+use ecr::problems::{Duffing, Nls, Wind};
 use ecr_runtime::integrate::Integrator;
-use ecr_runtime::problems::{Duffing, Nls, Wind};
 use ecr_runtime::stepper::{EcStepper, SolverSettings, StepReport};
 
 /// One of the paper's test problems, as the harness hands it to a method's constructor.

@@ -1,0 +1,64 @@
+//! Refusing storage that cannot exist: an `Err` naming the size instead of an abort (the same
+//! check and message as the runtime's constructors make, which keep theirs private).
+
+use ecr_runtime::{Error, Result};
+
+/// `Ok` if `entries` numbers (`f64`) can be allocated: their byte count fits in `isize` and
+/// the allocator grants it once (`try_reserve_exact`, freed at once: on an overcommitting
+/// system this reserves address space only). Otherwise [`Error::InvalidInput`] naming `what`
+/// and the size. `None` stands for a count that overflowed `usize`.
+pub(crate) fn ensure_allocatable(what: &str, entries: Option<usize>) -> Result<()> {
+    let bytes = entries.and_then(|e| e.checked_mul(size_of::<f64>()));
+    let granted = bytes.is_some_and(|b| {
+        isize::try_from(b).is_ok() && Vec::<u8>::new().try_reserve_exact(b).is_ok()
+    });
+    if granted {
+        return Ok(());
+    }
+    let size = match entries {
+        Some(e) => format!("{e} numbers, {}", format_bytes(e as f64 * 8.0)),
+        None => "more numbers than a usize counts".to_string(),
+    };
+    Err(Error::InvalidInput(format!(
+        "{what} would need {size}: more than can be allocated"
+    )))
+}
+
+/// `bytes` with a binary-prefixed unit and three decimals: "1.500 GiB".
+fn format_bytes(bytes: f64) -> String {
+    const UNITS: [&str; 7] = ["B", "KiB", "MiB", "GiB", "TiB", "PiB", "EiB"];
+    let mut value = bytes;
+    let mut unit = 0;
+    while value >= 1024.0 && unit + 1 < UNITS.len() {
+        value /= 1024.0;
+        unit += 1;
+    }
+    if unit == 0 {
+        format!("{value:.0} B")
+    } else {
+        format!("{value:.3} {}", UNITS[unit])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn small_storage_is_granted_absurd_storage_is_named() {
+        assert!(ensure_allocatable("x", Some(1000)).is_ok());
+        let msg = ensure_allocatable("the NLS grid", Some(1 << 60))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            msg.contains("the NLS grid") && msg.contains("8.000 EiB"),
+            "{msg}"
+        );
+        let msg = ensure_allocatable("the NLS grid", None)
+            .unwrap_err()
+            .to_string();
+        assert!(msg.contains("more numbers than a usize counts"), "{msg}");
+        assert_eq!(format_bytes(512.0), "512 B");
+        assert_eq!(format_bytes(1.5 * 1024.0 * 1024.0 * 1024.0), "1.500 GiB");
+    }
+}
