@@ -3,8 +3,8 @@
 
 use std::ops::ControlFlow;
 
-use ecr::runtime::integrate::{IntegrateOptions, integrate};
 use ecr::problems::{Duffing, Nls, Wind};
+use ecr::runtime::integrate::{IntegrateOptions, integrate};
 use ecr::runtime::solve::{Direction, Event, Options, Problem, Status};
 use ecr::runtime::stepper::EcStepper;
 use ecr::runtime::system::System;
