@@ -9,7 +9,26 @@
 //! dissipative Q) without drift over long runs. Second-order systems `q'' + Ωq = −∇U(q)` use
 //! the same stepper as TCrP (RKNCrP for Ω = 0).
 //!
-//! # Quick start
+//! # Quick start: to a tolerance
+//!
+//! [`solve`] chooses the order and the step size for a tolerance and returns the solution at
+//! the times asked for (`use ecr_runtime::prelude::*` brings what it needs into scope):
+//!
+//! ```
+//! use ecr_runtime::prelude::*;
+//!
+//! // H(q, p) = ½p² + ½q² + ¼q⁴, y = (q, p); ∇V is written into zeros.
+//! let grad_v = |y: &[f64], g: &mut [f64]| g[0] = y[0].powi(3);
+//! let system = Hamiltonian::canonical(DMatrix::identity(2, 2), grad_v)?
+//!     .potential(|y| 0.25 * y[0].powi(4));
+//! let problem = Problem::new(system, [1.0, 0.0], (0.0, 20.0))?;
+//! let sol = problem.solve(&Options::tolerance(1e-10).t_eval(linspace(0.0, 20.0, 5)))?;
+//! assert_eq!(sol.t, [0.0, 5.0, 10.0, 15.0, 20.0]);
+//! assert!(sol.energy_error().unwrap() < 1e-10);
+//! # Ok::<(), ecr_runtime::Error>(())
+//! ```
+//!
+//! # Quick start: a stepper in your own loop
 //!
 //! A system of your own, `q'' + ω²q = −q³` with `y = (q, p)`, `A = [[0, 1], [−ω², 0]]`,
 //! `g(y) = (0, −q³)` and the energy `H = p²/2 + ω²q²/2 + q⁴/4`, stepped with EC3P (order 6):
@@ -99,9 +118,14 @@
 //! - [`tables`]: the coefficient tables (built in by `build.rs` for r up to `ECR_MAX_R`,
 //!   default 8; generated and cached for other r ≤ 32).
 //! - [`error`]: [`Error`] and [`Result`].
-//! - `problems`, `baselines`, `special`: the paper's test problems, the methods it compares
-//!   with and their peers, and the elliptic functions of the exact Duffing solution: for the
-//!   `ecr` tools and the tests rather than for programs (they are to move out of this crate).
+//! - [`solve`]: [`Problem`](solve::Problem) → [`solve`](solve::Problem::solve) →
+//!   [`Solution`](solve::Solution): a tolerance (or a fixed r and h), output times, events,
+//!   observers, the continuous solution.
+//! - [`prelude`]: the names a program that solves a problem uses.
+//!
+//! The paper's test problems, the methods it compares with and the elliptic functions of the
+//! exact Duffing solution are in the `ecr` crate (`ecr::problems`, `ecr::baselines`,
+//! `ecr::special`, behind its features), not here.
 //!
 //! The method is written out in the repository's `docs/method.md` (stage equations, step
 //! formula, stopping rule, compensated update), the paper's errata in `docs/errata.md`, and
