@@ -117,7 +117,8 @@
 //! - [`phi`]: φ-functions of scalars and matrices, the trigonometric φᵗ, the Legendre kernels.
 //! - [`tables`]: the coefficient tables (built in by `build.rs` for r up to `ECR_MAX_R`,
 //!   default 8; generated and cached for other r ≤ 32).
-//! - [`error`]: [`Error`] and [`Result`].
+//! - [`error`]: [`Error`] and [`Result`]; [`storage`]: large allocations checked before they
+//!   are made (an error naming the size, not an abort).
 //! - [`solve`]: [`Problem`](solve::Problem) → [`solve`](solve::Problem::solve) →
 //!   [`Solution`](solve::Solution): a tolerance (or a fixed r and h), output times, events,
 //!   observers, the continuous solution.
@@ -140,7 +141,7 @@ pub mod phi;
 pub mod second_order;
 pub mod solve;
 pub mod stepper;
-mod storage;
+pub mod storage;
 pub mod system;
 pub mod tables;
 

@@ -9,7 +9,7 @@ use crate::{Error, Result};
 ///
 /// For the `O(d²)` and larger storage that constructors would otherwise allocate with
 /// `vec!`/`DMatrix::zeros`, which abort the process when the allocation fails.
-pub(crate) fn ensure_allocatable(what: &str, entries: Option<usize>) -> Result<()> {
+pub fn ensure_allocatable(what: &str, entries: Option<usize>) -> Result<()> {
     let bytes = entries.and_then(|e| e.checked_mul(size_of::<f64>()));
     let granted = bytes.is_some_and(|b| {
         isize::try_from(b).is_ok() && Vec::<u8>::new().try_reserve_exact(b).is_ok()

@@ -38,7 +38,6 @@ mod duffing;
 mod fpu;
 mod nls;
 mod nls2d;
-mod storage;
 mod systems;
 mod wind;
 

@@ -8,7 +8,7 @@ use nalgebra::DMatrix;
 use num_complex::Complex64;
 use rustfft::{Fft, FftPlanner};
 
-use super::storage::ensure_allocatable;
+use ecr_runtime::storage::ensure_allocatable;
 use super::{check_len, forward_test_problem};
 use ecr_runtime::{Error, Result};
 

@@ -20,7 +20,7 @@
 //! # Ok::<(), ecr_runtime::Error>(())
 //! ```
 
-use super::storage::ensure_allocatable;
+use ecr_runtime::storage::ensure_allocatable;
 use super::{Duffing, Fpu, Nls, TestProblem, Wind};
 use ecr_runtime::operator::{Circulant, Dense, LinearOperator, SkewPair};
 use ecr_runtime::second_order::{Omega, SecondOrderSystem};
