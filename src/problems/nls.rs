@@ -8,8 +8,8 @@ use nalgebra::DMatrix;
 use num_complex::Complex64;
 use rustfft::{Fft, FftPlanner};
 
-use ecr_runtime::storage::ensure_allocatable;
 use super::{check_len, forward_test_problem};
+use ecr_runtime::storage::ensure_allocatable;
 use ecr_runtime::{Error, Result};
 
 /// Problem 3 of the paper (§9): the cubic nonlinear Schrödinger equation

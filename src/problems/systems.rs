@@ -20,10 +20,10 @@
 //! # Ok::<(), ecr_runtime::Error>(())
 //! ```
 
-use ecr_runtime::storage::ensure_allocatable;
 use super::{Duffing, Fpu, Nls, TestProblem, Wind};
 use ecr_runtime::operator::{Circulant, Dense, LinearOperator, SkewPair};
 use ecr_runtime::second_order::{Omega, SecondOrderSystem};
+use ecr_runtime::storage::ensure_allocatable;
 use ecr_runtime::system::System;
 use ecr_runtime::{Error, Result};
 
