@@ -526,7 +526,6 @@ impl<S: System> Problem<S> {
                         (t_prev, ev_prev[k]),
                         (t, ev_now[k]),
                         &y_prev,
-                        &y,
                         &mut scratch,
                         &mut stats,
                     )?;
@@ -906,18 +905,15 @@ impl<'a, S: System> DenseStepper<'a, S> {
 
     /// The time of the zero of `event` between (t_a, e_a) and (t_b, e_b), by the Illinois
     /// variant of regula falsi on the continuous solution, to a few ulps of t.
-    #[allow(clippy::too_many_arguments)]
     fn locate(
         &mut self,
         event: &Event,
         (ta, ea): (f64, f64),
         (tb, eb): (f64, f64),
         y_a: &[f64],
-        y_b: &[f64],
         scratch: &mut [f64],
         stats: &mut Stats,
     ) -> Result<f64> {
-        let _ = y_b;
         if eb == 0.0 {
             return Ok(tb);
         }
