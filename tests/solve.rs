@@ -5,7 +5,7 @@ use std::ops::ControlFlow;
 
 use ecr::problems::{Duffing, Nls, Wind};
 use ecr::runtime::integrate::{IntegrateOptions, integrate};
-use ecr::runtime::solve::{Direction, Event, Options, Problem, Status};
+use ecr::runtime::solve::{Direction, Event, Options, Problem, SolveError, Status};
 use ecr::runtime::stepper::EcStepper;
 use ecr::runtime::system::System;
 
@@ -28,14 +28,20 @@ fn reference<S: System>(system: &S, y0: &[f64], t: f64, r: usize, h: f64) -> Vec
     y
 }
 
-/// Each tolerance 1e−4 … 1e−12: the error at t_end within 10× the tolerance.
+/// Each tolerance 1e−4 … 1e−12: the error at t_end within 10× the tolerance; at 1e−12 the
+/// solve may instead say that the tolerance is at the round-off floor.
 fn sweep<S: System>(name: &str, system: S, y0: Vec<f64>, t_end: f64, exact: &[f64]) {
     let problem = Problem::new(system, y0, (0.0, t_end)).unwrap();
     for k in [4, 6, 8, 10, 12] {
         let tol = 10f64.powi(-k);
-        let sol = problem
-            .solve(&Options::tolerance(tol).t_eval([t_end]))
-            .unwrap();
+        let sol = match problem.solve(&Options::tolerance(tol).t_eval([t_end])) {
+            Ok(sol) => sol,
+            Err(SolveError::Unverified { reason, .. }) if k == 12 && reason.contains("round-off") => {
+                eprintln!("{name}: tol 1e-{k}: not verified: {reason}");
+                continue;
+            }
+            Err(e) => panic!("{name}: tol 1e-{k}: {e}"),
+        };
         let ratio = scaled_error(sol.last().unwrap(), exact, tol);
         eprintln!(
             "{name}: tol 1e-{k}: EC{}P h = {:.4e}, {} steps, error / tol = {ratio:.3}, g: pilot \

@@ -52,6 +52,9 @@ pub enum Error {
     /// diverging: the solution grows beyond the f64 range within the step, or the step size is
     /// unstable for the problem. The string names the values.
     Overflow(&'static str),
+    /// A solve could not verify its answer to the tolerance; why, in words (the best
+    /// solution is in the `SolveError` this came from).
+    Unverified(String),
     /// A step of an integration failed; where, and why (`source`).
     AtStep {
         /// The number of the failed step (1 for the first).
@@ -117,6 +120,7 @@ impl fmt::Display for Error {
                 "{what} overflowed to infinity or NaN: the solution grows beyond the f64 range \
                  within the step, or the step size is unstable for the problem; try a smaller h"
             ),
+            Error::Unverified(msg) => write!(f, "the answer could not be verified: {msg}"),
             Error::AtStep { step, t, h, source } => {
                 write!(f, "step {step} from t = {t:?} (h = {h:?}) failed: {source}")
             }

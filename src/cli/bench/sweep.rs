@@ -186,7 +186,8 @@ impl<S: System> Run for Dop853<S> {
     }
 }
 
-/// `solve` with a tolerance: pilot runs choose r and h, then one run with output at t_end.
+/// `solve` with a tolerance: pilots choose r and h, then the run and its checks (verified),
+/// output at t_end; an answer that could not be verified counts as a failure.
 struct Solve<S> {
     system: S,
     tol: f64,
@@ -208,7 +209,7 @@ impl<S: System> Run for Solve<S> {
             }),
             None => problem.solve(&options),
         }
-        .map_err(err_s)?;
+        .map_err(|e| e.to_string())?;
         y.copy_from_slice(sol.last().ok_or("solve gave no output")?);
         Ok(sol.stats.total_g_evals())
     }

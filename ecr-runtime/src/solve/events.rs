@@ -1,0 +1,139 @@
+//! Events: the zeros of user functions e(t, y), located on the continuous solution.
+
+use crate::{Error, Result};
+
+/// Which sign changes of an event function count.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Direction {
+    /// From negative to positive and from positive to negative.
+    Both,
+    /// From negative to positive only.
+    Rising,
+    /// From positive to negative only.
+    Falling,
+}
+
+/// An event function e(t, y).
+type EventFn = Box<dyn Fn(f64, &[f64]) -> f64>;
+
+/// A user function e(t, y) whose sign changes are located during the integration.
+pub struct Event {
+    f: EventFn,
+    pub(super) terminal: bool,
+    direction: Direction,
+}
+
+impl Event {
+    /// An event at the zeros of `f(t, y)` (sign changes between output points of the
+    /// integration's finest grid; a zero touched without a sign change inside one step is not
+    /// seen). A NaN from `f` is an error of the solve.
+    pub fn new(f: impl Fn(f64, &[f64]) -> f64 + 'static) -> Self {
+        Event {
+            f: Box::new(f),
+            terminal: false,
+            direction: Direction::Both,
+        }
+    }
+
+    /// Stops the integration at the first such zero.
+    #[must_use]
+    pub fn terminal(mut self) -> Self {
+        self.terminal = true;
+        self
+    }
+
+    /// Only sign changes in this direction count.
+    #[must_use]
+    pub fn direction(mut self, direction: Direction) -> Self {
+        self.direction = direction;
+        self
+    }
+
+    /// e(t, y); a NaN is an error naming the event and the time.
+    pub(super) fn value(&self, index: usize, t: f64, y: &[f64]) -> Result<f64> {
+        let v = (self.f)(t, y);
+        if v.is_nan() {
+            return Err(Error::InvalidInput(format!(
+                "event function {index} returned NaN at t = {t:?}"
+            )));
+        }
+        Ok(v)
+    }
+
+    pub(super) fn counts(&self, before: f64, after: f64) -> bool {
+        let rising = before < 0.0 && after >= 0.0;
+        let falling = before > 0.0 && after <= 0.0;
+        match self.direction {
+            Direction::Both => rising || falling,
+            Direction::Rising => rising,
+            Direction::Falling => falling,
+        }
+    }
+
+    /// The time of the zero between (t_a, e_a) and (t_b, e_b), by the Illinois variant of
+    /// regula falsi, `eval(t)` giving e at t, to a few ulps of t: the end of the bracket on the
+    /// far side, the first time the sign changed.
+    pub(super) fn locate(
+        &self,
+        (ta, ea): (f64, f64),
+        (tb, eb): (f64, f64),
+        mut eval: impl FnMut(f64) -> Result<f64>,
+    ) -> Result<f64> {
+        if eb == 0.0 {
+            return Ok(tb);
+        }
+        let (mut a, mut fa, mut b, mut fb) = (ta, ea, tb, eb);
+        let mut side = 0i8;
+        for _ in 0..100 {
+            let tol = 4.0 * f64::EPSILON * a.abs().max(b.abs());
+            if b - a <= tol {
+                break;
+            }
+            let mut c = b - fb * (b - a) / (fb - fa);
+            if !(c > a && c < b) {
+                c = 0.5 * (a + b);
+            }
+            let fc = eval(c)?;
+            if fc == 0.0 {
+                return Ok(c);
+            }
+            if (fc < 0.0) == (fa < 0.0) {
+                a = c;
+                fa = fc;
+                if side == -1 {
+                    fb *= 0.5;
+                }
+                side = -1;
+            } else {
+                b = c;
+                fb = fc;
+                if side == 1 {
+                    fa *= 0.5;
+                }
+                side = 1;
+            }
+        }
+        Ok(b)
+    }
+}
+
+impl std::fmt::Debug for Event {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Event")
+            .field("terminal", &self.terminal)
+            .field("direction", &self.direction)
+            .finish_non_exhaustive()
+    }
+}
+
+/// A located zero of an event function.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EventHit {
+    /// The index of the event (in the order given to
+    /// [`Options::event`](super::Options::event)).
+    pub event: usize,
+    /// The time of the zero.
+    pub t: f64,
+    /// The state there.
+    pub y: Vec<f64>,
+}

@@ -1,0 +1,198 @@
+//! What [`Problem::solve`](super::Problem::solve) is asked for.
+
+use std::ops::RangeInclusive;
+
+use super::events::Event;
+use crate::stepper::SolverSettings;
+use crate::{Error, Result};
+
+/// How the solver picks the method and its step size.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Method {
+    /// Order and step size from the tolerance, the answer verified (see the module docs).
+    Auto,
+    /// ECrP of this r (order 2r, s = r), step size from the tolerance, the answer verified.
+    Order(usize),
+    /// ECrP of this r with this fixed step size h: no tolerance, no verification, no
+    /// estimate. The last step is shortened to end at t_end if h does not divide the span;
+    /// an h beyond the span is one step of the span.
+    Fixed {
+        /// r (order 2r).
+        r: usize,
+        /// The step size.
+        h: f64,
+    },
+}
+
+/// What [`Problem::solve`](super::Problem::solve) is asked for: a tolerance (or a fixed
+/// method), output times, events.
+#[derive(Debug)]
+pub struct Options {
+    pub(super) rtol: f64,
+    pub(super) atol: f64,
+    pub(super) method: Method,
+    pub(super) orders: RangeInclusive<usize>,
+    pub(super) t_eval: Option<Vec<f64>>,
+    pub(super) dense: bool,
+    pub(super) events: Vec<Event>,
+    pub(super) settings: SolverSettings,
+    pub(super) max_steps: usize,
+}
+
+impl Default for Options {
+    /// rtol = 1e−6, atol = 1e−9, [`Method::Auto`] over r = 1..=8, output at every verified
+    /// step, the stepper's default [`SolverSettings`], at most 10⁸ steps in one run.
+    fn default() -> Self {
+        Options {
+            rtol: 1e-6,
+            atol: 1e-9,
+            method: Method::Auto,
+            orders: 1..=8,
+            t_eval: None,
+            dense: false,
+            events: Vec::new(),
+            settings: SolverSettings::default(),
+            max_steps: 100_000_000,
+        }
+    }
+}
+
+impl Options {
+    /// rtol = atol = `tol`: the global error at every output time within tol·(1 + |y_i|) per
+    /// component.
+    pub fn tolerance(tol: f64) -> Self {
+        Options {
+            rtol: tol,
+            atol: tol,
+            ..Options::default()
+        }
+    }
+
+    /// ECrP of order 2r with the fixed step size h (no tolerance, no verification).
+    pub fn fixed(r: usize, h: f64) -> Self {
+        Options {
+            method: Method::Fixed { r, h },
+            ..Options::default()
+        }
+    }
+
+    /// The relative tolerance.
+    #[must_use]
+    pub fn rtol(mut self, rtol: f64) -> Self {
+        self.rtol = rtol;
+        self
+    }
+
+    /// The absolute tolerance.
+    #[must_use]
+    pub fn atol(mut self, atol: f64) -> Self {
+        self.atol = atol;
+        self
+    }
+
+    /// The method (default [`Method::Auto`]).
+    #[must_use]
+    pub fn method(mut self, method: Method) -> Self {
+        self.method = method;
+        self
+    }
+
+    /// The orders [`Method::Auto`] chooses from (r, order 2r; default 1..=8).
+    #[must_use]
+    pub fn orders(mut self, orders: RangeInclusive<usize>) -> Self {
+        self.orders = orders;
+        self
+    }
+
+    /// Output at these times (ascending, within the time span) instead of at every step.
+    #[must_use]
+    pub fn t_eval(mut self, times: impl IntoIterator<Item = f64>) -> Self {
+        self.t_eval = Some(times.into_iter().collect());
+        self
+    }
+
+    /// Keeps the step grid so that [`Solution::at`](super::Solution::at) can evaluate the
+    /// solution anywhere.
+    #[must_use]
+    pub fn dense_output(mut self) -> Self {
+        self.dense = true;
+        self
+    }
+
+    /// Locates the zeros of an event function (see [`Event`]).
+    #[must_use]
+    pub fn event(mut self, event: Event) -> Self {
+        self.events.push(event);
+        self
+    }
+
+    /// The stage solver's settings (of the run that is returned; the runs that only check it
+    /// stop their stage iteration at the accuracy the check needs).
+    #[must_use]
+    pub fn settings(mut self, settings: SolverSettings) -> Self {
+        self.settings = settings;
+        self
+    }
+
+    /// The most steps one run may take (an error beyond).
+    #[must_use]
+    pub fn max_steps(mut self, n: usize) -> Self {
+        self.max_steps = n;
+        self
+    }
+
+    /// The scaled size of a difference `e` at the state `y`: max_i |e_i| / (atol + rtol |y_i|),
+    /// a zero difference counting 0 also where the weight is 0.
+    pub(super) fn scaled(&self, e: impl Iterator<Item = f64>, y: &[f64]) -> f64 {
+        e.zip(y)
+            .map(|(e, y)| {
+                let e = e.abs();
+                if e == 0.0 {
+                    0.0
+                } else {
+                    e / (self.atol + self.rtol * y.abs())
+                }
+            })
+            .fold(0.0, |m, x| if x > m || x.is_nan() { x } else { m })
+    }
+
+    pub(super) fn validate(&self) -> Result<()> {
+        let tol_ok = |x: f64| x.is_finite() && x >= 0.0;
+        if !tol_ok(self.rtol) || !tol_ok(self.atol) || self.rtol + self.atol == 0.0 {
+            return Err(Error::InvalidParameter(format!(
+                "tolerances need rtol, atol >= 0, finite, not both 0 (got rtol = {:?}, atol = {:?})",
+                self.rtol, self.atol
+            )));
+        }
+        let (lo, hi) = (*self.orders.start(), *self.orders.end());
+        if lo == 0 || hi < lo {
+            return Err(Error::InvalidParameter(format!(
+                "orders must be a non-empty range of r >= 1 (got {lo}..={hi})"
+            )));
+        }
+        match self.method {
+            Method::Fixed { r, h } => {
+                if !(h.is_finite() && h > 0.0) {
+                    return Err(Error::InvalidStepSize(h));
+                }
+                if r == 0 {
+                    return Err(Error::InvalidParameter("r must be >= 1".into()));
+                }
+            }
+            Method::Order(0) => return Err(Error::InvalidParameter("r must be >= 1".into())),
+            _ => {}
+        }
+        if let Some(ts) = &self.t_eval {
+            if ts.iter().any(|t| !t.is_finite()) {
+                return Err(Error::NonFinite("t_eval"));
+            }
+            if ts.windows(2).any(|w| w[1] < w[0]) {
+                return Err(Error::InvalidInput("t_eval must be ascending".into()));
+            }
+        }
+        if self.max_steps == 0 {
+            return Err(Error::InvalidParameter("max_steps must be >= 1".into()));
+        }
+        self.settings.validate()
+    }
+}

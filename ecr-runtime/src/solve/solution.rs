@@ -1,0 +1,436 @@
+//! What a solve returns: the [`Solution`], what it cost ([`Stats`]), how it ended
+//! ([`Status`]), and the error that carries an answer that could not be verified
+//! ([`SolveError`]).
+
+use std::cell::Cell;
+use std::fmt;
+use std::sync::Arc;
+
+use super::dense::DenseStep;
+use super::events::EventHit;
+use crate::stepper::SolverSettings;
+use crate::system::System;
+use crate::{Error, Result};
+
+/// What the observer of [`Problem::solve_with`](super::Problem::solve_with) sees after each
+/// step.
+#[derive(Debug)]
+pub struct StepView<'a> {
+    /// The time reached.
+    pub t: f64,
+    /// The state there.
+    pub y: &'a [f64],
+    /// The number of the step (1 for the first).
+    pub step: usize,
+    /// Its size.
+    pub h: f64,
+}
+
+/// How the integration ended.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
+pub enum Status {
+    /// At t_end.
+    Completed,
+    /// At the zero of a terminal event.
+    Terminated {
+        /// The index of the event (in the order given to
+        /// [`Options::event`](super::Options::event)).
+        event: usize,
+        /// Its time.
+        t: f64,
+    },
+    /// The observer asked to stop, after the step that reached `t`.
+    Stopped {
+        /// The time reached.
+        t: f64,
+    },
+    /// A step failed at `t` (only in the best solution of a [`SolveError::Unverified`]: the
+    /// integration could not go on, e.g. at a singularity).
+    Failed {
+        /// The time reached.
+        t: f64,
+    },
+}
+
+/// What a solve cost. Every evaluation of g the solve made is in exactly one of the
+/// `*_g_evals` fields ([`total_g_evals`](Self::total_g_evals) sums them).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Stats {
+    /// Steps of the run that is returned.
+    pub steps: usize,
+    /// Evaluations of g in those steps.
+    pub g_evals: usize,
+    /// Stage sweeps (fixed-point or Newton iterations) in those steps.
+    pub sweeps: usize,
+    /// Steps of the runs that check it (steps 2h and 3h; none for a fixed method).
+    pub check_steps: usize,
+    /// Evaluations of g in those steps.
+    pub check_g_evals: usize,
+    /// Steps of the pilot runs that chose the order and the first step size.
+    pub pilot_steps: usize,
+    /// Evaluations of g in the pilot runs.
+    pub pilot_g_evals: usize,
+    /// Steps of all three runs over stretches that were integrated again with a smaller step
+    /// (the estimate was above the tolerance there, or a step failed).
+    pub discarded_steps: usize,
+    /// Evaluations of g in those steps.
+    pub discarded_g_evals: usize,
+    /// How often a stretch was integrated again.
+    pub retries: usize,
+    /// Steps taken to evaluate the solution between grid points (output times, events).
+    pub dense_evals: usize,
+    /// Evaluations of g in those steps.
+    pub dense_g_evals: usize,
+}
+
+impl Stats {
+    /// Every evaluation of g: the run, its checks, the pilots, the discarded stretches and
+    /// the output between grid points.
+    pub fn total_g_evals(&self) -> usize {
+        self.g_evals
+            + self.check_g_evals
+            + self.pilot_g_evals
+            + self.discarded_g_evals
+            + self.dense_g_evals
+    }
+
+    /// The evaluations of g spent beyond the run that is returned, per evaluation of that
+    /// run: what the automation and its verification cost (0 for a fixed method without
+    /// output between grid points).
+    pub fn overhead(&self) -> f64 {
+        (self.total_g_evals() - self.g_evals) as f64 / self.g_evals.max(1) as f64
+    }
+}
+
+/// A constant-step stretch of the run: from `t` on, the step size `h`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Segment {
+    /// Where the stretch starts.
+    pub t: f64,
+    /// Its step size.
+    pub h: f64,
+}
+
+/// The solution of a [`Problem`](super::Problem). It owns what it needs: it does not borrow
+/// the problem, and the system is shared with it (reference-counted) for
+/// [`at`](Self::at). `Solution<()>` (the default) is the same data without the system, as
+/// [`SolveError::Unverified`] carries it.
+pub struct Solution<S = ()> {
+    /// The output times: `t_eval`, or every point at which the error was verified (every
+    /// second step of the run; every step for a fixed method), t₀ first; up to the end of
+    /// the integration.
+    pub t: Vec<f64>,
+    /// The states at those times.
+    pub y: Vec<Vec<f64>>,
+    /// The energy H at those times, if the system knows H.
+    pub energy: Option<Vec<f64>>,
+    /// The estimated global error at each output time, in units of the tolerance
+    /// (max_i |e_i| / (atol + rtol |y_i|)): every entry ≤ 1 in a solution that `solve`
+    /// returns with `Ok`. Empty for a fixed method.
+    pub error_estimates: Vec<f64>,
+    /// The largest of [`error_estimates`](Self::error_estimates); `None` for a fixed method.
+    pub error_estimate: Option<f64>,
+    /// The order the check observed (log₂ of the ratio of the differences between the runs
+    /// with steps 4h, 2h and h; at most 2r, `None` where the differences were at round-off
+    /// level or for a fixed method).
+    pub observed_order: Option<f64>,
+    /// The located zeros of the events, in time order.
+    pub events: Vec<EventHit>,
+    /// How the integration ended.
+    pub status: Status,
+    /// What it cost.
+    pub stats: Stats,
+    /// The order used: r (order 2r).
+    pub r: usize,
+    /// Gauss–Legendre points per step.
+    pub s: usize,
+    /// The step size of the last stretch (see [`segments`](Self::segments)).
+    pub h: f64,
+    /// The constant-step stretches of the run, in time order (one for a run that never
+    /// changed its step).
+    pub segments: Vec<Segment>,
+    pub(super) energy0: Option<f64>,
+    pub(super) dense: Option<DenseData<S>>,
+}
+
+/// What [`Solution::at`] needs: the grid states, the system and the method.
+pub(super) struct DenseData<S> {
+    pub(super) system: Arc<S>,
+    pub(super) r: usize,
+    pub(super) settings: SolverSettings,
+    /// (rtol, atol) of the solve.
+    pub(super) tolerance: (f64, f64),
+    /// The grid: where the run's state is kept, with the largest step that follows it.
+    pub(super) t: Vec<f64>,
+    pub(super) h: Vec<f64>,
+    /// The run's states at `t` (flat).
+    pub(super) fine: Vec<f64>,
+    /// The checking run's (step 2h) states at `t`, for a verified solve.
+    pub(super) coarse: Option<Vec<f64>>,
+    /// 2^q − 1, q the observed order: the Richardson divisor.
+    pub(super) divisor: f64,
+    /// Steps taken by [`Solution::at`] and their evaluations of g.
+    pub(super) evals: Cell<(usize, usize)>,
+}
+
+impl<S> Clone for DenseData<S> {
+    fn clone(&self) -> Self {
+        DenseData {
+            system: Arc::clone(&self.system),
+            r: self.r,
+            settings: self.settings,
+            tolerance: self.tolerance,
+            t: self.t.clone(),
+            h: self.h.clone(),
+            fine: self.fine.clone(),
+            coarse: self.coarse.clone(),
+            divisor: self.divisor,
+            evals: self.evals.clone(),
+        }
+    }
+}
+
+impl<S> Clone for Solution<S> {
+    fn clone(&self) -> Self {
+        Solution {
+            t: self.t.clone(),
+            y: self.y.clone(),
+            energy: self.energy.clone(),
+            error_estimates: self.error_estimates.clone(),
+            error_estimate: self.error_estimate,
+            observed_order: self.observed_order,
+            events: self.events.clone(),
+            status: self.status,
+            stats: self.stats,
+            r: self.r,
+            s: self.s,
+            h: self.h,
+            segments: self.segments.clone(),
+            energy0: self.energy0,
+            dense: self.dense.clone(),
+        }
+    }
+}
+
+impl<S> fmt::Debug for Solution<S> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Solution")
+            .field("t", &self.t)
+            .field("y", &self.y)
+            .field("energy", &self.energy)
+            .field("error_estimate", &self.error_estimate)
+            .field("events", &self.events)
+            .field("status", &self.status)
+            .field("stats", &self.stats)
+            .field("r", &self.r)
+            .field("segments", &self.segments)
+            .finish_non_exhaustive()
+    }
+}
+
+impl<S> Solution<S> {
+    /// The same solution without the system ([`at`](Self::at) is then unavailable).
+    pub fn into_data(self) -> Solution {
+        Solution {
+            t: self.t,
+            y: self.y,
+            energy: self.energy,
+            error_estimates: self.error_estimates,
+            error_estimate: self.error_estimate,
+            observed_order: self.observed_order,
+            events: self.events,
+            status: self.status,
+            stats: self.stats,
+            r: self.r,
+            s: self.s,
+            h: self.h,
+            segments: self.segments,
+            energy0: self.energy0,
+            dense: None,
+        }
+    }
+
+    /// max over the outputs of |H − H₀| / max(|H₀|, tiny), if the system knows H; NaN if H
+    /// was NaN anywhere (a NaN is never hidden by the maximum).
+    pub fn energy_error(&self) -> Option<f64> {
+        let e0 = self.energy0?;
+        let scale = e0.abs().max(f64::MIN_POSITIVE);
+        let es = self.energy.as_ref()?;
+        let mut worst = 0.0_f64;
+        for e in es {
+            let x = (e - e0).abs() / scale;
+            if x.is_nan() {
+                return Some(f64::NAN);
+            }
+            worst = worst.max(x);
+        }
+        Some(worst)
+    }
+
+    /// The last output state.
+    pub fn last(&self) -> Option<&[f64]> {
+        self.y.last().map(Vec::as_slice)
+    }
+
+    /// Steps taken to evaluate the solution between grid points by [`at`](Self::at), and
+    /// their evaluations of g (those during the solve are in [`Stats`]).
+    pub fn dense_evaluations(&self) -> (usize, usize) {
+        self.dense.as_ref().map_or((0, 0), |d| d.evals.get())
+    }
+}
+
+impl<S: System> Solution<S> {
+    /// The solution at any time of the integrated span (needs
+    /// [`Options::dense_output`](super::Options::dense_output)): the grid value on the grid,
+    /// else the run's method stepped from the grid point before t (two steps of half the
+    /// distance; for a verified solve the checking run's value there too, one step, gives the
+    /// estimate).
+    ///
+    /// # Errors
+    /// [`Error::InvalidInput`] without dense output or for t outside the integrated span,
+    /// [`Error::Unverified`] if the estimate at t exceeds the tolerance, and what the steps
+    /// report.
+    pub fn at(&self, t: f64) -> Result<Vec<f64>> {
+        let d = self.y.first().map_or(0, Vec::len);
+        let mut out = vec![0.0; d];
+        self.at_into(t, &mut out)?;
+        Ok(out)
+    }
+
+    /// [`at`](Self::at) into `out`.
+    ///
+    /// # Errors
+    /// As [`at`](Self::at), and [`Error::DimensionMismatch`] for `out`.
+    pub fn at_into(&self, t: f64, out: &mut [f64]) -> Result<()> {
+        let dense = self.dense.as_ref().ok_or_else(|| {
+            Error::InvalidInput("Solution::at needs Options::dense_output()".into())
+        })?;
+        let d = dense.system.dim();
+        if out.len() != d {
+            return Err(Error::DimensionMismatch {
+                what: "the output and the system",
+                expected: d,
+                found: out.len(),
+            });
+        }
+        let (first, last) = (dense.t[0], *dense.t.last().unwrap_or(&dense.t[0]));
+        if !(first..=last).contains(&t) {
+            return Err(Error::InvalidInput(format!(
+                "t = {t:?} is outside the integrated span [{first:?}, {last:?}]"
+            )));
+        }
+        let k = dense.t.partition_point(|&tk| tk <= t).saturating_sub(1);
+        let fine = &dense.fine[k * d..(k + 1) * d];
+        if dense.t[k] == t {
+            out.copy_from_slice(fine);
+            return Ok(());
+        }
+        let dt = t - dense.t[k];
+        let mut step = DenseStep::new(&*dense.system, dense.r, dense.settings);
+        let (mut n, mut g) = dense.evals.get();
+        let Some(coarse) = &dense.coarse else {
+            let rep = step.advance(fine, dt, 1, out)?;
+            dense.evals.set((n + rep.0, g + rep.1));
+            return Ok(());
+        };
+        let rep = step.advance(fine, dt, 2, out)?;
+        n += rep.0;
+        g += rep.1;
+        let mut check = vec![0.0; d];
+        let rep = step.advance(&coarse[k * d..(k + 1) * d], dt, 1, &mut check)?;
+        dense.evals.set((n + rep.0, g + rep.1));
+        let (rtol, atol) = dense.tolerance;
+        let e = check
+            .iter()
+            .zip(out.iter())
+            .map(|(c, f)| {
+                let diff = (c - f).abs() / dense.divisor;
+                if diff == 0.0 { 0.0 } else { diff / (atol + rtol * f.abs()) }
+            })
+            .fold(0.0, f64::max);
+        if !(e <= 1.0) {
+            return Err(Error::Unverified(format!(
+                "the estimated error at t = {t:?} is {e:.3e} times the tolerance"
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// A solve that did not return a verified answer.
+#[derive(Clone, Debug)]
+#[non_exhaustive]
+pub enum SolveError {
+    /// The answer could not be verified to the tolerance (a tolerance below what f64 reaches
+    /// for the problem, chaos beyond predictability at this tolerance, a singularity, a
+    /// right-hand side not smooth enough for the order, …): why, and the best solution the
+    /// solve has, with its error estimates ([`Solution::error_estimates`], some above 1).
+    Unverified {
+        /// Why, in words.
+        reason: String,
+        /// The best solution, with its estimates.
+        solution: Box<Solution>,
+    },
+    /// Bad input or a failure that left no solution.
+    Failed(Error),
+}
+
+impl SolveError {
+    /// The best solution of an unverified answer.
+    pub fn solution(&self) -> Option<&Solution> {
+        match self {
+            SolveError::Unverified { solution, .. } => Some(solution),
+            SolveError::Failed(_) => None,
+        }
+    }
+
+    /// The best solution of an unverified answer, by value.
+    pub fn into_solution(self) -> Option<Solution> {
+        match self {
+            SolveError::Unverified { solution, .. } => Some(*solution),
+            SolveError::Failed(_) => None,
+        }
+    }
+}
+
+impl From<Error> for SolveError {
+    fn from(e: Error) -> Self {
+        SolveError::Failed(e)
+    }
+}
+
+impl From<SolveError> for Error {
+    /// [`Error::Unverified`] with the reason (the best solution is dropped), or the failure.
+    fn from(e: SolveError) -> Self {
+        match e {
+            SolveError::Failed(e) => e,
+            e @ SolveError::Unverified { .. } => Error::Unverified(e.to_string()),
+        }
+    }
+}
+
+impl fmt::Display for SolveError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SolveError::Unverified { reason, solution } => {
+                write!(f, "{reason}")?;
+                if let Some(e) = solution.error_estimate {
+                    write!(f, " (largest estimate {e:.3e} times the tolerance")?;
+                    write!(f, " over the {} outputs returned with this error)", solution.t.len())?;
+                }
+                Ok(())
+            }
+            SolveError::Failed(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl std::error::Error for SolveError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            SolveError::Failed(e) => Some(e),
+            SolveError::Unverified { .. } => None,
+        }
+    }
+}
