@@ -5,6 +5,8 @@ use clap::{Args, ValueEnum};
 use ecr::problems::{Duffing, Fpu, Nls, Wind};
 use ecr_runtime::integrate::{IntegrateOptions, Integrator, Report, integrate};
 use ecr_runtime::second_order::TcStepper;
+use ecr_runtime::solve::{Options, Problem, SolveError, Solution};
+use ecr_runtime::system::System;
 use ecr_runtime::stepper::{EcStepper, PARALLEL_MIN_DIM, Predictor, SolverSettings, StageSolver};
 use serde_json::{Value, json};
 use std::io::{IsTerminal, Write};
@@ -98,15 +100,23 @@ pub struct RunArgs {
     /// Method family: ec (any problem; fpu in first-order form), tc or rknc (fpu).
     #[arg(long, value_enum, default_value = "ec")]
     method: MethodArg,
-    /// Order parameter r (the method has order 2r).
+    /// Order parameter r (the method has order 2r); required with --h, with --tol it fixes
+    /// the order the solver may use (default: chosen by the solver).
     #[arg(long)]
-    r: usize,
+    r: Option<usize>,
     /// Number of Gauss–Legendre points, s ≥ r [default: r].
     #[arg(long)]
     s: Option<usize>,
-    /// Step size h > 0.
-    #[arg(long, allow_negative_numbers = true)]
-    h: f64,
+    /// Step size h > 0 (a fixed-step run; or use --tol).
+    #[arg(long, allow_negative_numbers = true, required_unless_present = "tol")]
+    h: Option<f64>,
+    /// Solve to this tolerance instead (rtol = atol = TOL, ECrP with the order and step the
+    /// solver chooses, the answer verified over the whole span): the report gives the
+    /// solver's error estimate and the error achieved, both in units of the tolerance,
+    /// measured against the exact solution (duffing) or a verified solve to TOL/1000. An
+    /// answer that could not be verified is reported with its reason and exit status 2.
+    #[arg(long, allow_negative_numbers = true, conflicts_with_all = ["h", "s", "paper_solver", "max_sweeps", "constant_start", "extrapolate", "newton", "tolerance"])]
+    tol: Option<f64>,
     /// Final time T ≥ 0 (the last step is shortened if h does not divide T).
     #[arg(long, allow_negative_numbers = true)]
     t_end: f64,
@@ -132,6 +142,19 @@ pub struct RunArgs {
     /// instead of fixed-point sweeps: for stiff nonlinearities. ECrP only.
     #[arg(long)]
     newton: bool,
+}
+
+impl RunArgs {
+    /// r of a fixed-step run (checked present by `check_inputs`); with --tol the largest r
+    /// the solver may choose.
+    fn r(&self) -> usize {
+        self.r.unwrap_or(8)
+    }
+
+    /// h of a fixed-step run (present unless --tol).
+    fn h(&self) -> f64 {
+        self.h.unwrap_or(f64::NAN)
+    }
 }
 
 fn usage(e: ecr_runtime::Error) -> UsageError {
@@ -190,10 +213,14 @@ fn report_interrupts() {
             } else {
                 ""
             };
-            eprintln!(
-                "{newline}error: interrupted at t = {t} after {steps} of {total} steps; \
-                 no report written"
-            );
+            if total == u64::MAX {
+                eprintln!("{newline}error: interrupted during the solve; no report written");
+            } else {
+                eprintln!(
+                    "{newline}error: interrupted at t = {t} after {steps} of {total} steps; \
+                     no report written"
+                );
+            }
             std::process::exit(130);
         });
     });
@@ -207,7 +234,7 @@ fn run_system<I: Integrator>(
     let mut stepper = stepper.map_err(usage)?;
     let mut y = y0;
     // integrate's count: ⌈T/h⌉ up to its 1e−9 relative slack.
-    let total = (args.t_end / args.h * (1.0 - 1e-9)).ceil().max(0.0) as u64;
+    let total = (args.t_end / args.h() * (1.0 - 1e-9)).ceil().max(0.0) as u64;
     PROGRESS.total.store(total, Ordering::Relaxed);
     PROGRESS.steps.store(0, Ordering::Relaxed);
     PROGRESS.t_bits.store(0.0f64.to_bits(), Ordering::Relaxed);
@@ -256,11 +283,25 @@ fn check_inputs(args: &RunArgs) -> Result<(), UsageError> {
             "method 'rknc' is for Ω = 0: use --problem fpu --omega 0 (or --method tc)".to_string(),
         ));
     }
-    if !(args.h.is_finite() && args.h > 0.0) {
-        return Err(UsageError(format!(
-            "step size --h {:?} must be finite and > 0",
-            args.h
-        )));
+    if let Some(tol) = args.tol {
+        if !(tol.is_finite() && tol > 0.0) {
+            return Err(UsageError(format!("--tol {tol:?} must be finite and > 0")));
+        }
+        if args.method != MethodArg::Ec {
+            return Err(UsageError(
+                "--tol solves with ECrP: use --method ec (fpu in first-order form)".to_string(),
+            ));
+        }
+    } else {
+        if args.r.is_none() {
+            return Err(UsageError("--r is required with --h".to_string()));
+        }
+        if !(args.h().is_finite() && args.h() > 0.0) {
+            return Err(UsageError(format!(
+                "step size --h {:?} must be finite and > 0",
+                args.h()
+            )));
+        }
     }
     if !(args.t_end.is_finite() && args.t_end >= 0.0) {
         return Err(UsageError(format!(
@@ -268,10 +309,11 @@ fn check_inputs(args: &RunArgs) -> Result<(), UsageError> {
             args.t_end
         )));
     }
-    if args.t_end / args.h > MAX_STEPS {
+    if args.tol.is_none() && args.t_end / args.h() > MAX_STEPS {
         return Err(UsageError(format!(
             "--t-end {:?} / --h {:?} needs more than {MAX_STEPS:e} steps",
-            args.t_end, args.h
+            args.t_end,
+            args.h()
         )));
     }
     if let Some(tol) = args.tolerance {
@@ -343,8 +385,8 @@ fn memory_estimate(args: &RunArgs) -> f64 {
         // Duffing and wind: 2; FPU (m = 3) in first-order form: 12.
         _ => 16.0,
     };
-    let r = args.r.min(ecr_codegen::MAX_R) as f64;
-    let s = args.s.unwrap_or(args.r).min(ecr_codegen::MAX_S) as f64;
+    let r = args.r().min(ecr_codegen::MAX_R) as f64;
+    let s = args.s.unwrap_or(args.r()).min(ecr_codegen::MAX_S) as f64;
     let taus = if solver_settings(args).predictor == Predictor::Extrapolate {
         2.0 * s + 1.0
     } else {
@@ -373,21 +415,24 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), UsageError> {
     };
     let what = format!(
         "{what} with r = {}, s = {}{}",
-        args.r,
-        args.s.unwrap_or(args.r),
+        args.r(),
+        args.s.unwrap_or(args.r()),
         if args.newton { " and --newton" } else { "" }
     );
     memory::check(&what, memory_estimate(args))?;
     report_interrupts();
+    if let Some(tol) = args.tol {
+        return run_tolerance(args, tol, out);
+    }
     let settings = solver_settings(args);
-    let s = args.s.unwrap_or(args.r);
+    let s = args.s.unwrap_or(args.r());
     let (outcome, parameters, global_error) = match args.problem {
         ProblemArg::Duffing => {
             let problem =
                 Duffing::new(args.omega.unwrap_or(5.0), args.k.unwrap_or(0.07)).map_err(usage)?;
             let system = problem.system().map_err(usage)?;
             let o = run_system(
-                EcStepper::with_nodes(system, args.r, s, args.h, settings),
+                EcStepper::with_nodes(system, args.r(), s, args.h(), settings),
                 problem.initial_value(),
                 args,
             )?;
@@ -409,7 +454,7 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), UsageError> {
             .map_err(usage)?;
             let system = problem.system().map_err(usage)?;
             let o = run_system(
-                EcStepper::with_nodes(system, args.r, s, args.h, settings),
+                EcStepper::with_nodes(system, args.r(), s, args.h(), settings),
                 problem.initial_value(),
                 args,
             )?;
@@ -424,7 +469,7 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), UsageError> {
             let problem = Nls::new(args.n.unwrap_or(128)).map_err(usage)?;
             let system = problem.system().map_err(usage)?;
             let o = run_system(
-                EcStepper::with_nodes(system, args.r, s, args.h, settings),
+                EcStepper::with_nodes(system, args.r(), s, args.h(), settings),
                 problem.initial_value(),
                 args,
             )?;
@@ -437,9 +482,9 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), UsageError> {
                 MethodArg::Ec => run_system(
                     EcStepper::with_nodes(
                         problem.first_order_system().map_err(usage)?,
-                        args.r,
+                        args.r(),
                         s,
-                        args.h,
+                        args.h(),
                         settings,
                     ),
                     y0,
@@ -448,9 +493,9 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), UsageError> {
                 MethodArg::Tc | MethodArg::Rknc => run_system(
                     TcStepper::with_nodes(
                         problem.system().map_err(usage)?,
-                        args.r,
+                        args.r(),
                         s,
-                        args.h,
+                        args.h(),
                         settings,
                     ),
                     y0,
@@ -469,9 +514,9 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), UsageError> {
         "problem": args.problem.name(),
         "parameters": parameters,
         "method": args.method.name(),
-        "r": args.r,
-        "s": args.s.unwrap_or(args.r),
-        "h": args.h,
+        "r": args.r(),
+        "s": args.s.unwrap_or(args.r()),
+        "h": args.h(),
         "t_end": report.t_end,
         "steps": report.steps,
         "solver": {
@@ -496,4 +541,192 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), UsageError> {
     text.push('\n');
     out.write_all(text.as_bytes())
         .map_err(|e| UsageError(format!("cannot write output: {e}")))
+}
+
+/// What a solve to a tolerance produced, for the report.
+struct Solved {
+    solution: Solution,
+    /// The reason, if the answer could not be verified.
+    unverified: Option<String>,
+    seconds: f64,
+}
+
+/// Solves `system` from `y0` over [0, t_end] to `tol` (output at t_end), the order fixed by
+/// `r` if given.
+fn solve_to<S: System>(
+    system: S,
+    y0: Vec<f64>,
+    t_end: f64,
+    tol: f64,
+    r: Option<usize>,
+) -> Result<Solved, UsageError> {
+    let start = Instant::now();
+    let problem = Problem::new(system, y0, (0.0, t_end)).map_err(usage)?;
+    let mut options = Options::tolerance(tol).t_eval([t_end]);
+    if let Some(r) = r {
+        options = options.orders(r..=r);
+    }
+    let (solution, unverified) = match problem.solve(&options) {
+        Ok(sol) => (sol.into_data(), None),
+        Err(SolveError::Unverified { reason, solution }) => (*solution, Some(reason)),
+        Err(SolveError::Failed(e)) => return Err(UsageError(format!("solve failed: {e}"))),
+        Err(e) => return Err(UsageError(format!("solve failed: {e}"))),
+    };
+    Ok(Solved {
+        solution,
+        unverified,
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// max_i |a_i − b_i| / (tol (1 + |b_i|)): an error in units of the tolerance.
+fn in_tolerance_units(a: &[f64], b: &[f64], tol: f64) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs() / (tol + tol * y.abs()))
+        .fold(0.0, f64::max)
+}
+
+/// `ecr run --tol TOL`: the problem solved to a tolerance, the estimate beside the error
+/// achieved (against the exact solution, or a verified solve to TOL/1000).
+fn run_tolerance(args: &RunArgs, tol: f64, out: &mut dyn Write) -> Result<(), UsageError> {
+    // The progress of a solve is not reported step by step; an interrupt says so.
+    PROGRESS.total.store(u64::MAX, Ordering::Relaxed);
+    let t_end = args.t_end;
+    let reference_tol = tol * 1e-3;
+    // (the solve, the parameters, the reference: its state, what it is, its estimate)
+    type Reference = (Option<Vec<f64>>, String, Option<f64>);
+    let reference_of = |r: Result<Solved, UsageError>| -> Reference {
+        match r {
+            Ok(s) if s.unverified.is_none() => (
+                s.solution.last().map(<[f64]>::to_vec),
+                format!("solve to {reference_tol:e}"),
+                s.solution.error_estimate,
+            ),
+            Ok(s) => (
+                None,
+                format!(
+                    "none: a solve to {reference_tol:e} was not verified ({})",
+                    s.unverified.unwrap_or_default()
+                ),
+                None,
+            ),
+            Err(e) => (None, format!("none: {}", e.0), None),
+        }
+    };
+    let (solved, parameters, reference): (Solved, Value, Reference) = match args.problem {
+        ProblemArg::Duffing => {
+            let problem =
+                Duffing::new(args.omega.unwrap_or(5.0), args.k.unwrap_or(0.07)).map_err(usage)?;
+            let y0 = problem.initial_value();
+            let solved = solve_to(problem.system().map_err(usage)?, y0, t_end, tol, args.r)?;
+            let exact = problem.exact(t_end).map_err(usage)?;
+            let params = json!({ "omega": problem.omega(), "k": problem.k() });
+            (solved, params, (Some(exact.to_vec()), "exact".to_string(), Some(0.0)))
+        }
+        ProblemArg::Wind | ProblemArg::WindDissipative => {
+            let radius = args.amplitude.unwrap_or(20.0);
+            let problem = match (args.theta, args.problem) {
+                (Some(theta), _) => Wind::new(theta, radius),
+                (None, ProblemArg::WindDissipative) => Wind::from_deviation(1e-4, radius),
+                (None, _) => Wind::new(std::f64::consts::FRAC_PI_2, radius),
+            }
+            .map_err(usage)?;
+            let y0 = problem.initial_value();
+            let solved = solve_to(problem.system().map_err(usage)?, y0.clone(), t_end, tol, args.r)?;
+            let reference = reference_of(solve_to(
+                problem.system().map_err(usage)?,
+                y0,
+                t_end,
+                reference_tol,
+                None,
+            ));
+            let params = json!({
+                "theta": problem.theta(),
+                "amplitude": problem.radius(),
+                "conservative": problem.is_conservative(),
+            });
+            (solved, params, reference)
+        }
+        ProblemArg::Nls => {
+            let problem = Nls::new(args.n.unwrap_or(128)).map_err(usage)?;
+            let y0 = problem.initial_value();
+            let solved = solve_to(problem.system().map_err(usage)?, y0.clone(), t_end, tol, args.r)?;
+            let reference = reference_of(solve_to(
+                problem.system().map_err(usage)?,
+                y0,
+                t_end,
+                reference_tol,
+                None,
+            ));
+            (solved, json!({ "n": problem.n() }), reference)
+        }
+        ProblemArg::Fpu => {
+            let problem = Fpu::new(3, args.omega.unwrap_or(50.0)).map_err(usage)?;
+            let y0 = problem.initial_value_first_order();
+            let system = problem.first_order_system().map_err(usage)?;
+            let solved = solve_to(system, y0.clone(), t_end, tol, args.r)?;
+            let reference = reference_of(solve_to(
+                problem.first_order_system().map_err(usage)?,
+                y0,
+                t_end,
+                reference_tol,
+                None,
+            ));
+            (solved, json!({ "m": problem.m(), "omega": problem.omega() }), reference)
+        }
+    };
+    let Solved {
+        solution,
+        unverified,
+        seconds,
+    } = solved;
+    let y = solution.last().map(<[f64]>::to_vec).unwrap_or_default();
+    let (reference_y, reference_what, reference_estimate) = reference;
+    let achieved = reference_y
+        .as_ref()
+        .map(|r| in_tolerance_units(&y, r, tol));
+    let stats = &solution.stats;
+    let value: Value = json!({
+        "problem": args.problem.name(),
+        "parameters": parameters,
+        "method": "ec",
+        "tolerance": tol,
+        "verified": unverified.is_none(),
+        "reason": unverified,
+        "error_estimate": solution.error_estimate,
+        "achieved_error": achieved,
+        "reference": reference_what,
+        "reference_estimate": reference_estimate.map(|e| e * 1e-3),
+        "error_units": "max_i |y_i - y_ref,i| / (tol (1 + |y_ref,i|)); the reference's estimate in the same units",
+        "observed_order": solution.observed_order,
+        "r": solution.r,
+        "s": solution.s,
+        "segments": solution.segments.iter().map(|s| json!({"t": s.t, "h": s.h})).collect::<Vec<_>>(),
+        "t_end": solution.t.last(),
+        "status": format!("{:?}", solution.status),
+        "y": y,
+        "energy_error": solution.energy_error(),
+        "steps": stats.steps,
+        "g_evals": stats.g_evals,
+        "total_g_evals": stats.total_g_evals(),
+        "stats": {
+            "check_g_evals": stats.check_g_evals,
+            "pilot_g_evals": stats.pilot_g_evals,
+            "discarded_g_evals": stats.discarded_g_evals,
+            "retries": stats.retries,
+        },
+        "wall_seconds": seconds,
+    });
+    let mut text = serde_json::to_string_pretty(&value).map_err(|e| UsageError(e.to_string()))?;
+    text.push('\n');
+    out.write_all(text.as_bytes())
+        .map_err(|e| UsageError(format!("cannot write output: {e}")))?;
+    match unverified {
+        None => Ok(()),
+        Some(reason) => Err(UsageError(format!(
+            "the answer could not be verified to --tol {tol:e}: {reason} (the report above \
+             holds the best solution and its estimate)"
+        ))),
+    }
 }

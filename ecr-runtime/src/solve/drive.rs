@@ -672,13 +672,13 @@ impl<S: System> Problem<S> {
                         let floor = if at_end { noise } else { project_noise(&history, noise, span) };
                         if (over || projected > 1.0) && floor >= 0.5 * projected.max(worst_out) {
                             add_cost(&mut kept.cost, &chunk.cost);
+                            let steps = runs.total;
                             runs.restore(&ck)?;
                             let why = format!(
                                 "the tolerance is at the round-off floor of this problem: by t = \
-                                 {t:?} the rounding of {} steps (and of time itself) is \
+                                 {t:?} the rounding of {steps} steps (and of time itself) is \
                                  modelled at {noise:.2e} times the tolerance, {floor:.2e} by the \
-                                 end of the span",
-                                runs.total
+                                 end of the span"
                             );
                             return Err(self.best_effort(options, runs, kept, stats, r, why, observer));
                         }
