@@ -190,7 +190,9 @@ fn report_interrupts() {
             } else {
                 ""
             };
-            eprintln!(
+            // A full or closed stderr loses the line, not the status.
+            let _ = writeln!(
+                std::io::stderr(),
                 "{newline}error: interrupted at t = {t} after {steps} of {total} steps; \
                  no report written"
             );
