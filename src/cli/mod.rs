@@ -160,6 +160,7 @@ const BROKEN_PIPE_STATUS: u8 = 141;
 /// went away (`ecr tables … | head`): the output is cut short, as for a program killed by
 /// SIGPIPE. A message that cannot be written to stderr is dropped; the status is the same.
 pub fn main() -> ExitCode {
+    memory::limit_malloc_arenas();
     if STDOUT_CLOSED.load(Ordering::Relaxed) {
         report(
             "standard output is closed: the command's output would be lost (redirect it to \
