@@ -386,6 +386,32 @@ fn pool_threads() -> usize {
         .unwrap_or(1)
 }
 
+/// `Err` naming the first non-finite number of the report, if any: a run does not report
+/// success with a state or an energy that overflowed. (The stepper refuses non-finite
+/// steps, so this is a last line of defence.)
+fn check_finite(report: &Report, y: &[f64], global_error: Option<f64>) -> Result<(), UsageError> {
+    let bad = if let Some(i) = y.iter().position(|v| !v.is_finite()) {
+        Some(format!("component {i} of the state"))
+    } else {
+        [
+            ("the initial energy", report.energy_start),
+            ("the final energy", report.energy_end),
+            ("the maximum energy error", report.max_energy_error),
+            ("the global error", global_error),
+        ]
+        .into_iter()
+        .find(|(_, v)| v.is_some_and(|v| !v.is_finite()))
+        .map(|(what, _)| what.to_string())
+    };
+    match bad {
+        Some(what) => Err(UsageError(format!(
+            "integration failed: {what} is not finite at t = {}; try a smaller --h",
+            report.t_end
+        ))),
+        None => Ok(()),
+    }
+}
+
 /// Runs `ecr run`.
 pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), UsageError> {
     check_inputs(args)?;
@@ -487,6 +513,7 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), UsageError> {
         }
     };
     let Outcome { report, y, seconds } = outcome;
+    check_finite(&report, &y, global_error)?;
     let value: Value = json!({
         "problem": args.problem.name(),
         "parameters": parameters,
