@@ -170,14 +170,90 @@ pub struct Tally {
     pub run_seconds: f64,
 }
 
+/// When [`run_and_signal`] signals the run: seconds after its start, or after its last file
+/// appeared in its staging directory (the marker and the commit follow).
+pub enum Moment {
+    After(f64),
+    AtCommit(f64),
+}
+
+/// Whether a staging directory beside `dir` holds the last file a run writes (`report.md` of
+/// reproduce, `summary.md` of bench) or ecr's marker, written just before the commit.
+fn committing(dir: &std::path::Path) -> bool {
+    let prefix = format!(".{}.ecr-new-", dir.file_name().unwrap().to_str().unwrap());
+    std::fs::read_dir(dir.parent().unwrap()).is_ok_and(|list| {
+        list.flatten().any(|e| {
+            e.file_name()
+                .to_str()
+                .is_some_and(|n| n.starts_with(&prefix))
+                && ["report.md", "summary.md", MARKER]
+                    .iter()
+                    .any(|f| e.path().join(f).exists())
+        })
+    })
+}
+
+/// Runs `ecr ARGS` (which write into `dir`), sends it `signal` (KILL, INT, TERM) at `moment`
+/// unless it has finished by then, and waits for it.
+pub fn run_and_signal(
+    args: &[&str],
+    dir: &std::path::Path,
+    moment: Moment,
+    signal: &str,
+) -> std::process::ExitStatus {
+    use std::time::{Duration, Instant};
+    let mut child = Command::new(env!("CARGO_BIN_EXE_ecr"))
+        .args(args)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("run ecr");
+    let start = Instant::now();
+    let deadline = match moment {
+        Moment::After(t) => start + Duration::from_secs_f64(t),
+        Moment::AtCommit(_) => start + Duration::from_secs(600),
+    };
+    loop {
+        if let Some(status) = child.try_wait().expect("poll ecr") {
+            return status; // finished before the signal
+        }
+        let now = Instant::now();
+        if now >= deadline {
+            break;
+        }
+        match moment {
+            Moment::After(_) => std::thread::sleep((deadline - now).min(Duration::from_millis(2))),
+            Moment::AtCommit(t) => {
+                if committing(dir) {
+                    let at = Instant::now() + Duration::from_secs_f64(t);
+                    while Instant::now() < at {
+                        std::hint::spin_loop();
+                    }
+                    break;
+                }
+                std::thread::yield_now();
+            }
+        }
+    }
+    let number = match signal {
+        "INT" => libc::SIGINT,
+        "TERM" => libc::SIGTERM,
+        _ => libc::SIGKILL,
+    };
+    // SAFETY: kill(2) on our child, not reaped yet (a zombie at worst: the signal is lost).
+    unsafe { libc::kill(child.id() as libc::pid_t, number) };
+    child.wait().expect("wait for ecr")
+}
+
 /// Kills `ecr ARGS --out DIR` `kills` times at random moments (seed `seed`), each time into a
-/// directory holding a previous run's files ([`previous_output`]). Half the moments are
-/// uniform over 1.1 times the run's duration (measured by a first, complete run), half between
-/// 0.85 and 1.1 times it, where the files are written and put in place (runs vary in length:
-/// some of these finish before the signal); the signal is SIGKILL, or SIGINT or
-/// SIGTERM one time in four each. After each kill DIR must hold exactly the previous files or
-/// the complete new ones (the names of the complete run's files, none with the old contents,
-/// none empty). Finally a complete run must leave nothing beside DIR.
+/// directory holding a previous run's files ([`previous_output`]). A third of the moments are
+/// uniform over 1.1 times the run's duration (measured by a first, complete run), a third
+/// between 0.85 and 1.1 times it, where the files are written and put in place (runs vary in
+/// length: some of these finish before the signal), a third up to 1 ms after the last file
+/// appeared in the staging directory (the marker, then the commit follow). The signal is
+/// SIGKILL, or SIGINT or SIGTERM one time in four each. After each kill DIR must hold exactly
+/// the previous files or the complete new ones (the names of the complete run's files, none
+/// with the old contents, none empty). Finally a complete run must leave nothing beside DIR.
 pub fn kill_at_random_moments(args: &[&str], kills: usize, seed: u64) -> Tally {
     use std::collections::BTreeSet;
     let root = TempDir::new("killed");
@@ -204,18 +280,30 @@ pub fn kill_at_random_moments(args: &[&str], kills: usize, seed: u64) -> Tally {
     };
     for k in 0..kills {
         let old = previous_output(&dir);
-        let moment = if k % 2 == 0 {
-            rng.unit() * 1.1 * run_seconds
-        } else {
-            run_seconds * (0.85 + 0.25 * rng.unit())
+        let (moment, when) = match k % 3 {
+            0 => {
+                let t = rng.unit() * 1.1 * run_seconds;
+                (Moment::After(t), format!("at {t:.3} s"))
+            }
+            1 => {
+                let t = run_seconds * (0.85 + 0.25 * rng.unit());
+                (Moment::After(t), format!("at {t:.3} s"))
+            }
+            _ => {
+                let t = rng.unit() * 1e-3;
+                (
+                    Moment::AtCommit(t),
+                    format!("{:.0} µs after the last file", t * 1e6),
+                )
+            }
         };
         let signal = match (rng.unit() * 4.0) as u32 {
             0 => "INT",
             1 => "TERM",
             _ => "KILL",
         };
-        let status = ecr_interrupted(&full, std::time::Duration::from_secs_f64(moment), signal);
-        let when = format!("{args:?}, {signal} at {moment:.3} s ({status})");
+        let status = run_and_signal(&full, &dir, moment, signal);
+        let when = format!("{args:?}, {signal} {when} ({status})");
         let now = dir_contents(&dir).unwrap_or_else(|| panic!("{when}: no --out"));
         tally.kills += 1;
         let outcome = if status.success() {
