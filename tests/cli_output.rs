@@ -73,6 +73,17 @@ fn symlinked_out_stays_a_symlink() {
     assert_eq!(std::fs::read_link(&link).unwrap(), Path::new("real"));
     assert_complete(&real);
     assert_eq!(entries(&root.0), ["link", "real"]);
+    // The same with a trailing slash (which made the commit fail, after the work).
+    let (code, _, stderr) = quick_into(&root.0.join("link/"), &[]);
+    assert_eq!(code, 0, "{stderr}");
+    assert!(
+        std::fs::symlink_metadata(&link)
+            .unwrap()
+            .file_type()
+            .is_symlink()
+    );
+    assert_complete(&real);
+    assert_eq!(entries(&root.0), ["link", "real"]);
 }
 
 /// A dangling symlink: the directory is created where it points, and the link stays. (The

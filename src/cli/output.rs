@@ -95,9 +95,13 @@ impl Replaced {
     }
 }
 
-/// `--out` with its symlinks followed (the last component; at most 40 links), and whether it
-/// was a link.
+/// `--out` with its symlinks followed (the last component; at most 40 links; a trailing `/` or
+/// `/.` dropped first), and whether it was a link.
 fn follow(out: &Path) -> Result<(PathBuf, bool), UsageError> {
+    // Without a trailing slash or "." (`link/` names the link's target, which a rename of
+    // `link/` would not replace): the components, put back together.
+    let out: PathBuf = out.components().collect();
+    let out = out.as_path();
     let mut path = out.to_path_buf();
     for _ in 0..40 {
         match fs::symlink_metadata(&path) {
