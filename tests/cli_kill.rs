@@ -1,10 +1,10 @@
 //! `ecr reproduce` and `ecr bench` killed at random moments (SIGKILL, SIGINT, SIGTERM; a third
-//! of the moments near the end of the run, a third within 1 ms of the last file written, around the commit)
-//! always leave `--out` holding exactly the previous run's files or the complete new ones, and
-//! a complete run afterwards leaves nothing beside it.
+//! of the moments in the last fifth of the run, a third while its last files are written and
+//! put in place) always leave `--out` holding exactly the previous run's files or the complete
+//! new ones, and a complete run afterwards leaves nothing beside it.
 //!
-//! The test run by CI kills 12 times (about 15 s). The long variant kills 39 times, three
-//! times the full `bench --quick` (about 6 minutes on 2 cores):
+//! The test run by CI kills 12 times (about 25 s). The long variant kills 39 times, three
+//! times the full `bench --quick` (about 9 minutes on 2 cores):
 //! `cargo test -p ecr --test cli_kill -- --ignored --nocapture`; set `ECR_KILL_SEED` to draw
 //! other moments.
 
@@ -24,7 +24,8 @@ fn campaign(runs: &[(&[&str], usize)], seed: u64) {
     for (k, &(args, kills)) in runs.iter().enumerate() {
         let t = kill_at_random_moments(args, kills, seed.wrapping_add(k as u64));
         println!(
-            "{args:?}: {} kills (run {:.2} s): {} old, {} new, {} finished before the signal",
+            "{args:?}: {} kills (first run {:.2} s): {} old, {} new; {} more runs finished \
+             before their signal",
             t.kills, t.run_seconds, t.old, t.new, t.finished
         );
         total.kills += t.kills;
@@ -33,7 +34,8 @@ fn campaign(runs: &[(&[&str], usize)], seed: u64) {
         total.finished += t.finished;
     }
     println!(
-        "seed {seed}: {} kills: {} old, {} new, {} finished; none mixed or missing",
+        "seed {seed}: {} kills: {} old, {} new, none mixed or missing; {} runs finished \
+         before their signal",
         total.kills, total.old, total.new, total.finished
     );
 }
@@ -50,7 +52,7 @@ fn killed_runs_leave_the_old_or_the_new_output() {
 }
 
 #[test]
-#[ignore = "about 6 minutes: cargo test -p ecr --test cli_kill -- --ignored --nocapture"]
+#[ignore = "about 9 minutes: cargo test -p ecr --test cli_kill -- --ignored --nocapture"]
 fn killed_runs_leave_the_old_or_the_new_output_long() {
     campaign(
         &[

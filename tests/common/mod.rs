@@ -159,48 +159,53 @@ impl Rng {
 /// What the kills of [`kill_at_random_moments`] left in `--out`.
 #[derive(Debug, Default)]
 pub struct Tally {
+    /// Runs killed (signalled before they finished).
     pub kills: usize,
     /// The previous run's files, exactly.
     pub old: usize,
     /// The complete files of a new run (killed after its commit).
     pub new: usize,
-    /// Runs that finished before the signal (their output checked like `new`).
+    /// Runs that finished before the signal (their output checked like `new`; not counted
+    /// as kills: the campaign runs until it has made `kills` kills).
     pub finished: usize,
     /// The time one complete run took, seconds.
     pub run_seconds: f64,
 }
 
-/// When [`run_and_signal`] signals the run: seconds after its start, or after its last file
-/// appeared in its staging directory (the marker and the commit follow).
+/// When [`run_and_signal`] signals the run: seconds after its start, or seconds after its
+/// staging directory holds `entries` entries (the last files, the marker and the commit
+/// follow).
 pub enum Moment {
     After(f64),
-    AtCommit(f64),
+    Staged { entries: usize, after: f64 },
 }
 
-/// Whether a staging directory beside `dir` holds the last file a run writes (`report.md` of
-/// reproduce, `summary.md` of bench) or ecr's marker, written just before the commit.
-fn committing(dir: &std::path::Path) -> bool {
+/// The number of entries of the fullest staging directory beside `dir`.
+fn staged_entries(dir: &std::path::Path) -> usize {
     let prefix = format!(".{}.ecr-new-", dir.file_name().unwrap().to_str().unwrap());
-    std::fs::read_dir(dir.parent().unwrap()).is_ok_and(|list| {
-        list.flatten().any(|e| {
+    let Ok(list) = std::fs::read_dir(dir.parent().unwrap()) else {
+        return 0;
+    };
+    list.flatten()
+        .filter(|e| {
             e.file_name()
                 .to_str()
                 .is_some_and(|n| n.starts_with(&prefix))
-                && ["report.md", "summary.md", MARKER]
-                    .iter()
-                    .any(|f| e.path().join(f).exists())
         })
-    })
+        .map(|e| std::fs::read_dir(e.path()).map_or(0, |d| d.count()))
+        .max()
+        .unwrap_or(0)
 }
 
 /// Runs `ecr ARGS` (which write into `dir`), sends it `signal` (KILL, INT, TERM) at `moment`
-/// unless it has finished by then, and waits for it.
+/// unless it has finished by then, and waits for it. Returns its status and, for
+/// [`Moment::Staged`], when the staging directory was seen holding the entries.
 pub fn run_and_signal(
     args: &[&str],
     dir: &std::path::Path,
     moment: Moment,
     signal: &str,
-) -> std::process::ExitStatus {
+) -> (std::process::ExitStatus, Option<std::time::Instant>) {
     use std::time::{Duration, Instant};
     let mut child = Command::new(env!("CARGO_BIN_EXE_ecr"))
         .args(args)
@@ -209,30 +214,27 @@ pub fn run_and_signal(
         .spawn()
         .expect("run ecr");
     let start = Instant::now();
-    let deadline = match moment {
+    let mut deadline = match moment {
         Moment::After(t) => start + Duration::from_secs_f64(t),
-        Moment::AtCommit(_) => start + Duration::from_secs(600),
+        Moment::Staged { .. } => start + Duration::from_secs(600),
     };
+    let mut seen = None;
     loop {
         if let Some(status) = child.try_wait().expect("poll ecr") {
-            return status; // finished before the signal
+            return (status, seen); // finished before the signal
         }
         let now = Instant::now();
         if now >= deadline {
             break;
         }
         match moment {
-            Moment::After(_) => std::thread::sleep((deadline - now).min(Duration::from_millis(2))),
-            Moment::AtCommit(t) => {
-                if committing(dir) {
-                    let at = Instant::now() + Duration::from_secs_f64(t);
-                    while Instant::now() < at {
-                        std::hint::spin_loop();
-                    }
-                    break;
+            Moment::Staged { entries, after } if seen.is_none() => {
+                if staged_entries(dir) >= entries {
+                    seen = Some(now);
+                    deadline = now + Duration::from_secs_f64(after);
                 }
-                std::thread::yield_now();
             }
+            _ => std::thread::sleep((deadline - now).min(Duration::from_millis(1))),
         }
     }
     let number = match signal {
@@ -242,18 +244,20 @@ pub fn run_and_signal(
     };
     // SAFETY: kill(2) on our child, not reaped yet (a zombie at worst: the signal is lost).
     unsafe { libc::kill(child.id() as libc::pid_t, number) };
-    child.wait().expect("wait for ecr")
+    (child.wait().expect("wait for ecr"), seen)
 }
 
 /// Kills `ecr ARGS --out DIR` `kills` times at random moments (seed `seed`), each time into a
-/// directory holding a previous run's files ([`previous_output`]). A third of the moments are
-/// uniform over 1.1 times the run's duration (measured by a first, complete run), a third
-/// between 0.85 and 1.1 times it, where the files are written and put in place (runs vary in
-/// length: some of these finish before the signal), a third up to 1 ms after the last file
-/// appeared in the staging directory (the marker, then the commit follow). The signal is
-/// SIGKILL, or SIGINT or SIGTERM one time in four each. After each kill DIR must hold exactly
-/// the previous files or the complete new ones (the names of the complete run's files, none
-/// with the old contents, none empty). Finally a complete run must leave nothing beside DIR.
+/// directory holding a previous run's files ([`previous_output`]). The moments rotate between
+/// uniform over the run's duration, the last fifth of it (where the files are written and put
+/// in place), and the moments after the third-to-last file appeared in the staging directory
+/// (the last files, the marker and the commit follow), up to the shortest time seen from there
+/// to the end of a run; the duration is the shortest run seen (a first, complete run, then
+/// those that finished before their signal, which are not counted as kills). The signal
+/// is SIGKILL, or SIGINT or SIGTERM one time in four each. After each run DIR must hold
+/// exactly the previous files or the complete new ones (the names of the complete run's
+/// files, none with the old contents, none empty). Finally a complete run must leave nothing
+/// beside DIR.
 pub fn kill_at_random_moments(args: &[&str], kills: usize, seed: u64) -> Tally {
     use std::collections::BTreeSet;
     let root = TempDir::new("killed");
@@ -278,22 +282,34 @@ pub fn kill_at_random_moments(args: &[&str], kills: usize, seed: u64) -> Tally {
         run_seconds,
         ..Tally::default()
     };
-    for k in 0..kills {
+    // The shortest run seen so far: runs vary in length with the machine's load, and a
+    // moment past the end is no kill.
+    let mut shortest = run_seconds;
+    // The shortest time seen from the third-to-last staged file to the end of a run.
+    let mut tail: f64 = 0.05;
+    let mut attempt = 0;
+    while tally.kills < kills {
+        attempt += 1;
+        assert!(
+            attempt <= 4 * kills,
+            "{args:?}: too many runs finished before the signal"
+        );
         let old = previous_output(&dir);
-        let (moment, when) = match k % 3 {
-            0 => {
-                let t = rng.unit() * 1.1 * run_seconds;
+        let (moment, when) = match attempt % 3 {
+            1 => {
+                let t = rng.unit() * shortest;
                 (Moment::After(t), format!("at {t:.3} s"))
             }
-            1 => {
-                let t = run_seconds * (0.85 + 0.25 * rng.unit());
+            2 => {
+                let t = shortest * (0.8 + 0.2 * rng.unit());
                 (Moment::After(t), format!("at {t:.3} s"))
             }
             _ => {
-                let t = rng.unit() * 1e-3;
+                let t = rng.unit() * tail;
+                let entries = complete.len() - 3;
                 (
-                    Moment::AtCommit(t),
-                    format!("{:.0} µs after the last file", t * 1e6),
+                    Moment::Staged { entries, after: t },
+                    format!("{:.2} ms after {entries} files were staged", t * 1e3),
                 )
             }
         };
@@ -302,15 +318,21 @@ pub fn kill_at_random_moments(args: &[&str], kills: usize, seed: u64) -> Tally {
             1 => "TERM",
             _ => "KILL",
         };
-        let status = run_and_signal(&full, &dir, moment, signal);
+        let start = std::time::Instant::now();
+        let (status, seen) = run_and_signal(&full, &dir, moment, signal);
+        let seen_to_end = seen.map(|t| t.elapsed().as_secs_f64());
         let when = format!("{args:?}, {signal} {when} ({status})");
         let now = dir_contents(&dir).unwrap_or_else(|| panic!("{when}: no --out"));
-        tally.kills += 1;
         let outcome = if status.success() {
             assert!(is_new(&now), "{when}: finished, but holds {:?}", now.keys());
+            shortest = shortest.min(start.elapsed().as_secs_f64());
+            if let Some(t) = seen_to_end {
+                tail = tail.min(t);
+            }
             tally.finished += 1;
-            "finished"
+            "finished before the signal"
         } else if now == old {
+            tally.kills += 1;
             tally.old += 1;
             "old"
         } else {
@@ -319,6 +341,7 @@ pub fn kill_at_random_moments(args: &[&str], kills: usize, seed: u64) -> Tally {
                 "{when}: neither old nor new: {:?}",
                 now.keys()
             );
+            tally.kills += 1;
             tally.new += 1;
             "new"
         };
