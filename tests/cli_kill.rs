@@ -3,8 +3,8 @@
 //! put in place) always leave `--out` holding exactly the previous run's files or the complete
 //! new ones, and a complete run afterwards leaves nothing beside it.
 //!
-//! The test run by CI kills 12 times (about 25 s). The long variant kills 39 times, three
-//! times the full `bench --quick` (about 9 minutes on 2 cores):
+//! The test run by CI kills 10 times (about 15 s). The long variant kills 39 times, three
+//! times the full `bench --quick` (about 10 minutes on 2 cores):
 //! `cargo test -p ecr --test cli_kill -- --ignored --nocapture`; set `ECR_KILL_SEED` to draw
 //! other moments.
 
@@ -44,7 +44,7 @@ fn campaign(runs: &[(&[&str], usize)], seed: u64) {
 fn killed_runs_leave_the_old_or_the_new_output() {
     campaign(
         &[
-            (&["reproduce", "--quick"], 6),
+            (&["reproduce", "--quick"], 4),
             (&["bench", "--quick", "--only", "scaling"], 6),
         ],
         seed(0x0EC8_0028),
@@ -52,7 +52,7 @@ fn killed_runs_leave_the_old_or_the_new_output() {
 }
 
 #[test]
-#[ignore = "about 9 minutes: cargo test -p ecr --test cli_kill -- --ignored --nocapture"]
+#[ignore = "about 10 minutes: cargo test -p ecr --test cli_kill -- --ignored --nocapture"]
 fn killed_runs_leave_the_old_or_the_new_output_long() {
     campaign(
         &[
