@@ -348,14 +348,3 @@ fn malformed_arguments_are_one_line_errors() {
         assert_eq!(stderr.trim_end().lines().count(), 1, "{args:?}: {stderr}");
     }
 }
-
-/// As for reproduce: a kill at any moment leaves --out as it was or complete, and
-/// `--only scaling` replaces a previous run's directory whole (no work–precision files of an
-/// older run beside a summary that does not mention them).
-#[test]
-fn interrupted_bench_leaves_the_old_or_a_complete_directory() {
-    common::check_interrupted_runs_leave_old_or_complete(
-        &["bench", "--quick", "--only", "scaling"],
-        &[(0.02, "KILL"), (0.05, "INT"), (0.1, "KILL")],
-    );
-}

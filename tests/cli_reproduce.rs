@@ -295,14 +295,3 @@ fn full_stdout_keeps_the_files_and_says_so() {
     );
     assert!(out.0.join("report.md").is_file());
 }
-
-/// A kill at any moment (SIGKILL, SIGINT; before, during and after the computation and the
-/// writing) leaves --out as it was or complete: the run writes into a staging directory and
-/// swaps it in at the end. (It used to write in place: old files stayed beside new ones.)
-#[test]
-fn interrupted_reproduce_leaves_the_old_or_a_complete_directory() {
-    common::check_interrupted_runs_leave_old_or_complete(
-        &["reproduce", "--quick"],
-        &[(0.2, "KILL"), (0.8, "INT"), (1.6, "KILL")],
-    );
-}

@@ -570,3 +570,48 @@ fn interrupted_run_reports_where_it_got_to() {
         .unwrap();
     assert!(steps > 0, "{err}");
 }
+
+/// `--n 65536` takes the concurrent path (d ≥ 2¹⁵), whose threads each reserved a 64 MiB
+/// malloc arena outside the estimate: under `ulimit -v 200000` the run aborted (SIGABRT,
+/// "memory allocation of 1048576 bytes failed") in 1 to 3 runs of 4. Around that limit every
+/// run now either completes or is refused in one line naming the size; none is killed by a
+/// signal.
+#[test]
+fn nls_on_the_concurrent_path_never_aborts_under_an_address_space_limit() {
+    let args = [
+        "run",
+        "--problem",
+        "nls",
+        "--n",
+        "65536",
+        "--r",
+        "2",
+        "--h",
+        "0.01",
+        "--t-end",
+        "0.01",
+    ];
+    let mut outcomes = Vec::new();
+    for kib in [180_000, 190_000, 200_000, 205_000, 210_000, 220_000] {
+        for _ in 0..3 {
+            let (code, out, err) = common::ecr_with_address_space(kib, &args);
+            match code {
+                0 => {
+                    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+                    assert!(v["y"].as_array().unwrap().iter().all(|y| y.is_f64()));
+                }
+                2 => {
+                    assert_eq!(err.lines().count(), 1, "{kib} KiB: {err}");
+                    assert!(
+                        err.starts_with("error: --problem nls --n 65536")
+                            && err.contains("needs about"),
+                        "{kib} KiB: {err}"
+                    );
+                }
+                _ => panic!("ulimit -v {kib}: status {code} (-1: a signal): {err}"),
+            }
+            outcomes.push((kib, code));
+        }
+    }
+    println!("(ulimit -v KiB, status): {outcomes:?}");
+}

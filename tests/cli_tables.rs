@@ -105,11 +105,11 @@ fn bad_input_is_one_line_and_exit_status_2() {
     }
 }
 
-/// Unix conventions for standard output: a reader that stops early (`ecr … | head`) ends the
-/// output silently with status 0 (it was "cannot write output: Broken pipe", status 2); a
-/// full device is one line and status 1 (not 2, which is for bad input).
+/// A reader that stops early (`ecr … | head`): the output ends there, silently (nothing on
+/// stderr), with status 141, as for a command killed by SIGPIPE — not 0, which told a script
+/// that the whole result had been delivered. (It used to be 0.)
 #[test]
-fn closed_pipe_is_silent_and_full_device_is_status_1() {
+fn closed_pipe_is_status_141_without_a_message() {
     use std::io::Read;
     use std::process::{Command, Stdio};
     // 16384 numbers of JSON, far more than a pipe holds: the writer meets the closed pipe.
@@ -124,15 +124,19 @@ fn closed_pipe_is_silent_and_full_device_is_status_1() {
     child.stdout.take().unwrap().read_exact(&mut first).unwrap();
     let out = child.wait_with_output().unwrap();
     assert_eq!(first[0], b'{');
-    assert_eq!(out.status.code(), Some(0), "{out:?}");
+    assert_eq!(out.status.code(), Some(141), "{out:?}");
     assert!(
         out.stderr.is_empty(),
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+}
 
+/// A full device on stdout: one line, status 1 (not 2, which is for bad input).
+#[test]
+fn full_stdout_is_status_1_with_a_message() {
     let full = std::fs::File::create("/dev/full").unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_ecr"))
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_ecr"))
         .args(["tables", "--family", "ec", "--r", "2"])
         .stdout(full)
         .output()
@@ -141,4 +145,76 @@ fn closed_pipe_is_silent_and_full_device_is_status_1() {
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert_eq!(err.lines().count(), 1, "{err}");
     assert!(err.starts_with("error: cannot write output: "), "{err}");
+}
+
+/// Runs ecr with `args` through `sh -c`, the redirections `redirect` applied to it.
+fn ecr_redirected(redirect: &str, args: &[&str]) -> std::process::Output {
+    std::process::Command::new("sh")
+        .arg("-c")
+        .arg(format!("exec \"$0\" \"$@\" {redirect}"))
+        .arg(env!("CARGO_BIN_EXE_ecr"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// A full stderr: the message is lost, but the status still tells: 2 for bad input, 1 when
+/// stdout is full too (as without the full stderr); no panic. (Both were 101, a panic.)
+#[test]
+fn full_stderr_keeps_the_status_and_does_not_panic() {
+    for (redirect, args, status) in [
+        (
+            "2>/dev/full",
+            &["tables", "--family", "ec", "--r", "0"][..],
+            2,
+        ),
+        (
+            "2>/dev/full",
+            &["run", "--problem", "duffing", "--h", "0.1"],
+            2,
+        ),
+        (
+            "2>/dev/full >/dev/full",
+            &["tables", "--family", "ec", "--r", "2"],
+            1,
+        ),
+        ("2>/dev/full >/dev/full", &["--help"], 1),
+        ("2>/dev/full", &["--version"], 0),
+    ] {
+        let out = ecr_redirected(redirect, args);
+        assert_eq!(
+            out.status.code(),
+            Some(status),
+            "{redirect} {args:?}: {out:?}"
+        );
+    }
+}
+
+/// A closed stdout (`>&-`): one line, status 1, before any work. (The output went nowhere,
+/// status 0.)
+#[test]
+fn closed_stdout_is_status_1_with_a_message() {
+    for args in [
+        &["tables", "--family", "ec", "--r", "2"][..],
+        &[
+            "run",
+            "--problem",
+            "duffing",
+            "--r",
+            "2",
+            "--h",
+            "0.1",
+            "--t-end",
+            "1",
+        ],
+    ] {
+        let out = ecr_redirected(">&-", args);
+        let err = String::from_utf8(out.stderr).unwrap();
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert_eq!(err.lines().count(), 1, "{err}");
+        assert!(err.starts_with("error: standard output is closed"), "{err}");
+    }
+    // The closed stderr just loses the message.
+    let out = ecr_redirected(">&- 2>&-", &["tables", "--family", "ec", "--r", "2"]);
+    assert_eq!(out.status.code(), Some(1), "{out:?}");
 }

@@ -9,6 +9,34 @@
 use super::UsageError;
 use std::fs;
 
+/// Under an address-space limit (`ulimit -v`), keeps glibc's malloc to its main arena.
+///
+/// glibc gives each thread that allocates its own arena, and reserves 64 MiB of address space
+/// for each (128 MiB while it aligns one): the two threads of rayon's pool and the SIGINT
+/// thread reserved 192 MiB that no estimate of the memory a run uses counts, and under
+/// `ulimit -v 200000` an NLS run with N = 65536 aborted when a worker's arena won the race for
+/// the address space its own buffers needed. Reservations cost nothing where the address space
+/// is not limited, so this changes nothing there; with one arena the threads share the main
+/// one (they allocate only while a stepper is set up). To be called before any thread starts.
+pub fn limit_malloc_arenas() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    {
+        let mut limit = libc::rlimit {
+            rlim_cur: 0,
+            rlim_max: 0,
+        };
+        // SAFETY: getrlimit writes the struct it is given; mallopt takes plain integers and is
+        // called before any other thread exists.
+        unsafe {
+            if libc::getrlimit(libc::RLIMIT_AS, &mut limit) == 0
+                && limit.rlim_cur != libc::RLIM_INFINITY
+            {
+                libc::mallopt(libc::M_ARENA_MAX, 1);
+            }
+        }
+    }
+}
+
 /// The share of the available memory a run may take: room for what the estimate leaves out
 /// and for the rest of the system.
 pub const FRACTION: f64 = 0.75;

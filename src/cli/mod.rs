@@ -12,7 +12,9 @@ mod run;
 mod tables;
 
 use clap::{Parser, Subcommand};
+use std::io::Write;
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Exponential collocation methods: coefficient tables, integration, the paper's experiments.
 #[derive(Parser, Debug)]
@@ -116,14 +118,56 @@ impl<W: std::io::Write> std::io::Write for Stdout<W> {
     }
 }
 
+/// Whether file descriptor 1 was closed when the process started: the standard library then
+/// opens /dev/null on it (before `main`), and whatever the command prints is lost. Recorded by
+/// [`CHECK_STDOUT`], which runs before the standard library's start-up.
+static STDOUT_CLOSED: AtomicBool = AtomicBool::new(false);
+
+/// Records in [`STDOUT_CLOSED`] whether descriptor 1 is open, from the program's constructors
+/// (`.init_array`, run by the C runtime before Rust's start-up code reopens closed standard
+/// descriptors on /dev/null). Linux only: elsewhere a closed stdout goes undetected.
+#[cfg(target_os = "linux")]
+#[used]
+#[unsafe(link_section = ".init_array")]
+static CHECK_STDOUT: extern "C" fn() = {
+    extern "C" fn check() {
+        // SAFETY: F_GETFD only reads the descriptor's flags.
+        if unsafe { libc::fcntl(1, libc::F_GETFD) } == -1 {
+            STDOUT_CLOSED.store(true, Ordering::Relaxed);
+        }
+    }
+    check
+};
+
+/// Writes `error: <msg>` on stderr, ignoring a failure (a full or broken stderr): the exit
+/// status still tells.
+fn report(msg: &str) {
+    let msg = msg.strip_prefix("error: ").unwrap_or(msg);
+    let _ = writeln!(std::io::stderr(), "error: {msg}");
+}
+
+/// The exit status after standard output failed with EPIPE (the reader went away): what a
+/// shell reports for a command killed by SIGPIPE (128 + 13), which is what a C program would
+/// have been.
+const BROKEN_PIPE_STATUS: u8 = 141;
+
 /// Entry point of the binary.
 ///
 /// Exit status: 0 on success; 2 with one line on stderr for bad input or a failed command;
-/// 1 with one line on stderr if standard output cannot be written (e.g. `> /dev/full`): the
-/// command's files, if it writes any, are complete, and the line says so. A reader that
-/// closes the pipe early (`ecr tables … | head`) is not an error: the output stops there,
-/// silently, with status 0.
+/// 1 with one line on stderr if standard output cannot be written (e.g. `> /dev/full`; the
+/// command's files, if it writes any, are complete, and the line says so) or was closed when
+/// the command started (`>&-`; then before any work); 141, silently, if the reader of a pipe
+/// went away (`ecr tables … | head`): the output is cut short, as for a program killed by
+/// SIGPIPE. A message that cannot be written to stderr is dropped; the status is the same.
 pub fn main() -> ExitCode {
+    memory::limit_malloc_arenas();
+    if STDOUT_CLOSED.load(Ordering::Relaxed) {
+        report(
+            "standard output is closed: the command's output would be lost (redirect it to \
+             /dev/null to discard it)",
+        );
+        return ExitCode::from(1);
+    }
     let stdout = std::io::stdout();
     let mut out = Stdout {
         inner: stdout.lock(),
@@ -132,21 +176,19 @@ pub fn main() -> ExitCode {
     let result = run(std::env::args_os(), &mut out);
     let flushed = std::io::Write::flush(&mut out);
     match (out.error, result) {
-        (Some(std::io::ErrorKind::BrokenPipe), _) => ExitCode::SUCCESS,
+        (Some(std::io::ErrorKind::BrokenPipe), _) => ExitCode::from(BROKEN_PIPE_STATUS),
         (Some(_), Err(UsageError(msg))) => {
-            let msg = msg.strip_prefix("error: ").unwrap_or(&msg);
-            eprintln!("error: {msg}");
+            report(&msg);
             ExitCode::from(1)
         }
         (Some(_), Ok(())) => {
             let e = flushed.err().map_or_else(String::new, |e| e.to_string());
-            eprintln!("error: cannot write output: {e}");
+            report(&format!("cannot write output: {e}"));
             ExitCode::from(1)
         }
         (None, Ok(())) => ExitCode::SUCCESS,
         (None, Err(UsageError(msg))) => {
-            let msg = msg.strip_prefix("error: ").unwrap_or(&msg);
-            eprintln!("error: {msg}");
+            report(&msg);
             ExitCode::from(2)
         }
     }

@@ -213,14 +213,19 @@ fn report_interrupts() {
             } else {
                 ""
             };
-            if total == u64::MAX {
-                eprintln!("{newline}error: interrupted during the solve; no report written");
+            // A full or closed stderr loses the line, not the status.
+            let _ = if total == u64::MAX {
+                writeln!(
+                    std::io::stderr(),
+                    "{newline}error: interrupted during the solve; no report written"
+                )
             } else {
-                eprintln!(
+                writeln!(
+                    std::io::stderr(),
                     "{newline}error: interrupted at t = {t} after {steps} of {total} steps; \
                      no report written"
-                );
-            }
+                )
+            };
             std::process::exit(130);
         });
     });
@@ -377,9 +382,13 @@ fn solver_settings(args: &RunArgs) -> SolverSettings {
 /// --newton, the Newton matrices (2s²d² + 2d² numbers). From d = `PARALLEL_MIN_DIM` on, the
 /// workspaces of the concurrent stage path: at most max(s, r + 1), each the spectra of r + 1
 /// inputs, a buffer and the FFT scratch (r + 3 complex numbers per mode). r and s are clamped
-/// to the tables' range: larger ones are refused later with their own message.
+/// to the tables' range: larger ones are refused later with their own message. The stacks of
+/// the threads, 2 MiB each (the standard library's default): the SIGINT handler's and, from
+/// d = `PARALLEL_MIN_DIM` on, rayon's pool ([`pool_threads`]). Their malloc arenas are not
+/// counted: under `ulimit -v` the threads share one ([`memory::limit_malloc_arenas`]).
 fn memory_estimate(args: &RunArgs) -> f64 {
     const BASE: f64 = 32.0 * 1024.0 * 1024.0;
+    const STACK: f64 = 2.0 * 1024.0 * 1024.0;
     let d = match args.problem {
         ProblemArg::Nls => 2.0 * args.n.unwrap_or(128) as f64,
         // Duffing and wind: 2; FPU (m = 3) in first-order form: 12.
@@ -403,7 +412,49 @@ fn memory_estimate(args: &RunArgs) -> f64 {
     } else {
         0.0
     };
-    BASE + d * per_component + newton
+    let pool = if d >= PARALLEL_MIN_DIM as f64 {
+        pool_threads() as f64
+    } else {
+        0.0
+    };
+    BASE + (1.0 + pool) * STACK + d * per_component + newton
+}
+
+/// The threads of rayon's pool: `RAYON_NUM_THREADS` if set (and > 0), else one per CPU (what
+/// rayon starts; asking rayon would start it).
+fn pool_threads() -> usize {
+    std::env::var("RAYON_NUM_THREADS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .filter(|&n| n > 0)
+        .or_else(|| std::thread::available_parallelism().ok().map(|n| n.get()))
+        .unwrap_or(1)
+}
+
+/// `Err` naming the first non-finite number of the report, if any: a run does not report
+/// success with a state or an energy that overflowed. (The stepper refuses non-finite
+/// steps, so this is a last line of defence.)
+fn check_finite(report: &Report, y: &[f64], global_error: Option<f64>) -> Result<(), UsageError> {
+    let bad = if let Some(i) = y.iter().position(|v| !v.is_finite()) {
+        Some(format!("component {i} of the state"))
+    } else {
+        [
+            ("the initial energy", report.energy_start),
+            ("the final energy", report.energy_end),
+            ("the maximum energy error", report.max_energy_error),
+            ("the global error", global_error),
+        ]
+        .into_iter()
+        .find(|(_, v)| v.is_some_and(|v| !v.is_finite()))
+        .map(|(what, _)| what.to_string())
+    };
+    match bad {
+        Some(what) => Err(UsageError(format!(
+            "integration failed: {what} is not finite at t = {}; try a smaller --h",
+            report.t_end
+        ))),
+        None => Ok(()),
+    }
 }
 
 /// Runs `ecr run`.
@@ -510,6 +561,7 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), UsageError> {
         }
     };
     let Outcome { report, y, seconds } = outcome;
+    check_finite(&report, &y, global_error)?;
     let value: Value = json!({
         "problem": args.problem.name(),
         "parameters": parameters,

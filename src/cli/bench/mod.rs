@@ -28,8 +28,10 @@ use sweep::{Config, Point, ProblemId, ProblemRun};
     after_help = "Writes <problem>.csv, <problem>-error and <problem>-energy (.png, .svg) for \
                   duffing, wind and nls (those of --problem), scaling.csv and scaling (.png, \
                   .svg), and summary.md into --out. CPU time is the wall-clock \
-                  time of a single-threaded run. An unusable --out or a bad --problem prints \
-                  one line starting with 'error: ' on stderr and exits with status 2."
+                  time of a single-threaded run. --out is replaced whole, as by ecr reproduce \
+                  (see its help: symlinks, --force). An unusable --out or a bad --problem \
+                  prints one line starting with 'error: ' on stderr and exits with status 2, \
+                  before any work."
 )]
 pub struct BenchArgs {
     /// Tiny intervals and two points per method, one timed run each (seconds in total).
@@ -39,6 +41,10 @@ pub struct BenchArgs {
     /// then holds that part's files only, none of a previous run's other part).
     #[arg(long, default_value = "out/bench")]
     out: PathBuf,
+    /// Replace --out even if it holds files that ecr did not write (a non-empty directory
+    /// without the .ecr-output file that ecr puts into its output directories).
+    #[arg(long)]
+    force: bool,
     /// Run only one part of the benchmark.
     #[arg(long, value_enum)]
     only: Option<Part>,
@@ -294,7 +300,7 @@ pub fn run(args: &BenchArgs, out: &mut dyn Write) -> Result<(), UsageError> {
     };
     problems.sort();
     problems.dedup();
-    let staged = OutputDir::stage(&args.out)?;
+    let staged = OutputDir::stage(&args.out, args.force, "bench")?;
     let c = Config::new(args.quick);
     let start = Instant::now();
     let results = match args.only {

@@ -23,8 +23,11 @@ use std::time::Instant;
 #[command(
     after_help = "Writes p1-1, p1-2, p2-1, p2-2, p3 (.png and .svg), one CSV per sub-panel, \
                   summary.csv and report.md into --out, replacing it whole once every file \
-                  is written (staged beside it). An unusable --out prints one line \
-                  starting with 'error: ' on stderr and exits with status 2."
+                  is written (staged beside it). A symlink --out stays a symlink (the files go \
+                  where it points). An unusable --out (a file, a mount point, a directory \
+                  that cannot be renamed, or one that holds files ecr did not write, without \
+                  --force) prints one line starting with 'error: ' on stderr and exits with \
+                  status 2 before any work."
 )]
 pub struct ReproduceArgs {
     /// Shrink the intervals (about T/100) so that everything runs in seconds.
@@ -33,6 +36,10 @@ pub struct ReproduceArgs {
     /// Output directory (created if missing, replaced whole by a complete run).
     #[arg(long, default_value = "out/reproduce")]
     out: PathBuf,
+    /// Replace --out even if it holds files that ecr did not write (a non-empty directory
+    /// without the .ecr-output file that ecr puts into its output directories).
+    #[arg(long)]
+    force: bool,
 }
 
 /// A CSV table: header and rows of cells.
@@ -101,7 +108,7 @@ fn write_outputs(
 
 /// Runs `ecr reproduce`.
 pub fn run(args: &ReproduceArgs, out: &mut dyn Write) -> Result<(), UsageError> {
-    let staged = OutputDir::stage(&args.out)?;
+    let staged = OutputDir::stage(&args.out, args.force, "reproduce")?;
     let config = Config::new(args.quick);
     let methods = methods::methods();
     let start = Instant::now();
