@@ -26,105 +26,46 @@ use common::{TempDir, ecr};
 use std::path::{Path, PathBuf};
 
 /// The `ecr run` cases: a golden file name and the arguments after `run`.
-const RUNS: &[(&str, &[&str])] = &[
+const RUNS: &[(&str, &str)] = &[
     (
         "duffing-ec-r2",
-        &["--problem", "duffing", "--r", "2", "--h", "0.1", "--t-end", "20"],
+        "--problem duffing --r 2 --h 0.1 --t-end 20",
     ),
     (
         "duffing-ec-r3-s4-newton",
-        &[
-            "--problem", "duffing", "--r", "3", "--s", "4", "--h", "0.05", "--t-end", "5",
-            "--newton",
-        ],
+        "--problem duffing --r 3 --s 4 --h 0.05 --t-end 5 --newton",
     ),
     (
         "duffing-ec-r4-paper",
-        &[
-            "--problem", "duffing", "--omega", "20", "--r", "4", "--h", "0.0625", "--t-end",
-            "10", "--paper-solver",
-        ],
+        "--problem duffing --omega 20 --r 4 --h 0.0625 --t-end 10 --paper-solver",
     ),
-    (
-        "wind-ec-r3",
-        &["--problem", "wind", "--r", "3", "--h", "0.1", "--t-end", "20"],
-    ),
+    ("wind-ec-r3", "--problem wind --r 3 --h 0.1 --t-end 20"),
     (
         "wind-dissipative-ec-r2-constant",
-        &[
-            "--problem",
-            "wind-dissipative",
-            "--r",
-            "2",
-            "--h",
-            "0.05",
-            "--t-end",
-            "10",
-            "--constant-start",
-        ],
+        "--problem wind-dissipative --r 2 --h 0.05 --t-end 10 --constant-start",
     ),
-    (
-        "nls-ec-r2",
-        &["--problem", "nls", "--r", "2", "--h", "0.01", "--t-end", "0.5"],
-    ),
+    ("nls-ec-r2", "--problem nls --r 2 --h 0.01 --t-end 0.5"),
     (
         "nls-ec-r3-n64-paper",
-        &[
-            "--problem", "nls", "--n", "64", "--r", "3", "--h", "0.02", "--t-end", "0.4",
-            "--paper-solver",
-        ],
+        "--problem nls --n 64 --r 3 --h 0.02 --t-end 0.4 --paper-solver",
     ),
     (
         "nls-ec-r2-n32-newton",
-        &[
-            "--problem", "nls", "--n", "32", "--r", "2", "--h", "0.02", "--t-end", "0.2",
-            "--newton",
-        ],
+        "--problem nls --n 32 --r 2 --h 0.02 --t-end 0.2 --newton",
     ),
     (
         "fpu-tc-r2",
-        &[
-            "--problem", "fpu", "--method", "tc", "--r", "2", "--h", "0.01", "--t-end", "5",
-        ],
+        "--problem fpu --method tc --r 2 --h 0.01 --t-end 5",
     ),
     (
         "fpu-tc-r3-tol",
-        &[
-            "--problem",
-            "fpu",
-            "--method",
-            "tc",
-            "--r",
-            "3",
-            "--h",
-            "0.02",
-            "--t-end",
-            "5",
-            "--tolerance",
-            "1e-14",
-        ],
+        "--problem fpu --method tc --r 3 --h 0.02 --t-end 5 --tolerance 1e-14",
     ),
     (
         "fpu-rknc-r2",
-        &[
-            "--problem",
-            "fpu",
-            "--omega",
-            "0",
-            "--method",
-            "rknc",
-            "--r",
-            "2",
-            "--h",
-            "0.05",
-            "--t-end",
-            "5",
-        ],
+        "--problem fpu --omega 0 --method rknc --r 2 --h 0.05 --t-end 5",
     ),
-    (
-        "fpu-ec-r2",
-        &["--problem", "fpu", "--r", "2", "--h", "0.01", "--t-end", "2"],
-    ),
+    ("fpu-ec-r2", "--problem fpu --r 2 --h 0.01 --t-end 2"),
 ];
 
 fn golden_dir() -> PathBuf {
@@ -187,7 +128,7 @@ fn run_reports_are_bit_identical() {
     let mut diffs = Vec::new();
     for (name, args) in RUNS {
         let mut full = vec!["run"];
-        full.extend_from_slice(args);
+        full.extend(args.split_whitespace());
         let (code, out, err) = ecr(&full);
         assert_eq!(code, 0, "ecr {full:?}: {err}");
         assert!(out.contains("\"wall_seconds\""), "{name}: no timing field");
@@ -260,7 +201,9 @@ fn reproduce_csvs_are_bit_identical() {
         for e in std::fs::read_dir(&golden).unwrap() {
             let name = e.unwrap().file_name().into_string().unwrap();
             if name.ends_with(".csv") && !names.contains(&name) {
-                diffs.push(format!("{name}: in tests/golden/reproduce, no longer written"));
+                diffs.push(format!(
+                    "{name}: in tests/golden/reproduce, no longer written"
+                ));
             }
         }
     }
