@@ -50,8 +50,8 @@
 //! stage state local to each step, so that it stays in registers). [`EcStepper`] is the
 //! run-time-r form.
 //!
-//! The files of this folder, in the order of a step's data flow: [`settings`](SolverSettings)
-//! and the [`StepReport`] (`settings.rs`); the method's kernel and the combine coefficients
+//! The files of this folder, in the order of a step's data flow: the [`SolverSettings`] and
+//! the [`StepReport`] (`settings.rs`); the method's kernel and the combine coefficients
 //! (`kernel.rs`); the stage buffers (`buffers.rs`); the stopping rules and faults
 //! (`stopping.rs`); the fused maps and their matrix–vector product (`fused.rs`, `gemv.rs`);
 //! the concurrent path's state (`parallel.rs`); what a step works with (`context.rs`), where
