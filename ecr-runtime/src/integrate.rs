@@ -1,9 +1,9 @@
 //! Fixed-step integration over [t0, T] with observers and a final report.
 
+use crate::error::{Error, Result};
 use crate::second_order::{SecondOrderSystem, TcStepper};
 use crate::stepper::{Buffers, Kernel, StepReport, Stepper};
 use crate::system::System;
-use crate::{Error, Result};
 
 /// A one-step method with a fixed step size acting on a flat state vector: what
 /// [`integrate`] drives. Implemented by [`Stepper`] (state y) and [`TcStepper`] (state

@@ -1,6 +1,6 @@
 //! Refusing storage that cannot exist: an `Err` naming the size instead of an abort.
 
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// `Ok` if `entries` numbers (`f64`) can be allocated: their byte count fits in `isize` and
 /// the allocator grants it once (`try_reserve_exact`, freed at once: on an overcommitting

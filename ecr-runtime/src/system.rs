@@ -1,8 +1,8 @@
 //! Systems y' = Ay + g(y) (paper eq. `IVP1`): the linear part as a structured
 //! [`LinearOperator`], the nonlinearity g, and the energy H when it is known.
 
+use crate::error::{Error, Result};
 use crate::operator::{Dense, LinearOperator, Symmetric};
-use crate::{Error, Result};
 use nalgebra::DMatrix;
 
 /// A semilinear system y' = Ay + g(y) with a structured linear part.

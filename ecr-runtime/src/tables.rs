@@ -5,7 +5,7 @@
 #![allow(missing_docs)] // the generated modules document themselves; the include! hides it
 include!(concat!(env!("OUT_DIR"), "/tables.rs"));
 
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 pub use ecr_codegen::QuadratureKind;
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex, OnceLock};

@@ -7,10 +7,12 @@ use std::sync::{Arc, Mutex};
 use num_complex::Complex64;
 use rustfft::{Fft, FftPlanner};
 
-use super::circulant::{SpectralBank, SpectralWorkspace, spectral_apply, sum_dd};
-use super::skew::{SkewGenerator, SpectralBasis};
-use super::{LinearOperator, NodeFunctions};
-use crate::{Error, Result};
+use super::entries::NodeFunctions;
+use super::spectral::{
+    SkewGenerator, SpectralBank, SpectralBasis, SpectralWorkspace, spectral_apply, sum_dd,
+};
+use super::traits::LinearOperator;
+use crate::error::{Error, Result};
 
 /// Relative asymmetry of the first column tolerated by [`SkewGenerator::real_spectrum`].
 const SYMMETRY_TOL: f64 = 1e-12;

@@ -3,58 +3,18 @@
 use std::ops::Range;
 use std::sync::Arc;
 
-use nalgebra::{DMatrix, DVectorView, DVectorViewMut, SMatrix, SVector};
+use nalgebra::{DMatrix, SMatrix, SVector};
 use num_complex::Complex64;
 
+use super::checks::{apply_shape, check_bank_scale, check_bank_values, combine_shape};
+use super::entries::{DD_PROPAGATOR_MAX_DIM, NodeFunctions};
+use super::matvec::{gemv, gemv_tr, matvec_dd};
 use super::simple::diagonal_block;
-use super::skew::{SkewGenerator, SpectralBasis};
-use super::{
-    DD_PROPAGATOR_MAX_DIM, LinearOperator, NodeFunctions, PhiBank, apply_shape, check_bank_scale,
-    check_bank_values, combine_shape,
-};
-use crate::phi::{check_symmetric, expm_dd, symmetric_eigen, two_prod, two_sum, validate_matrix};
+use super::spectral::{SkewGenerator, SpectralBasis};
+use super::traits::{LinearOperator, PhiBank};
+use crate::error::{Error, Result};
+use crate::phi::{check_symmetric, expm_dd, symmetric_eigen, validate_matrix};
 use crate::storage::ensure_allocatable;
-use crate::{Error, Result};
-
-/// `hi + lo = (Mh + Ml) x` in double-double (Dot2 on the high part), without allocation.
-pub(super) fn matvec_dd<R: nalgebra::Dim, C: nalgebra::Dim, S: nalgebra::RawStorage<f64, R, C>>(
-    mh: &nalgebra::Matrix<f64, R, C, S>,
-    ml: &nalgebra::Matrix<f64, R, C, S>,
-    x: &[f64],
-    hi: &mut [f64],
-    lo: &mut [f64],
-) {
-    let (rows, cols) = mh.shape();
-    assert!(x.len() == cols && hi.len() == rows && lo.len() == rows);
-    for r in 0..rows {
-        let (mut s, mut c) = (0.0, 0.0);
-        for (k, xv) in x.iter().enumerate() {
-            let (p, e) = two_prod(mh[(r, k)], *xv);
-            let (t, q) = two_sum(s, p);
-            s = t;
-            c += q + e + ml[(r, k)] * xv;
-        }
-        let (h, l) = two_sum(s, c);
-        hi[r] = h;
-        lo[r] = l;
-    }
-}
-
-/// `y = M x` (or `y = α M x + β y`) on slices, without allocation.
-#[inline]
-pub(super) fn gemv(y: &mut [f64], alpha: f64, m: &DMatrix<f64>, x: &[f64], beta: f64) {
-    let n = x.len();
-    let mut yv = DVectorViewMut::from_slice(y, m.nrows());
-    yv.gemv(alpha, m, &DVectorView::from_slice(x, n), beta);
-}
-
-/// `y = Mᵀ x` on slices, without allocation.
-#[inline]
-pub(super) fn gemv_tr(y: &mut [f64], m: &DMatrix<f64>, x: &[f64]) {
-    let n = x.len();
-    let mut yv = DVectorViewMut::from_slice(y, m.ncols());
-    yv.gemv_tr(1.0, m, &DVectorView::from_slice(x, n), 0.0);
-}
 
 /// A general dense matrix `A` (non-normal allowed); φ by scaling and modified squaring
 /// ([`phi_dense`](crate::phi::phi_dense)).

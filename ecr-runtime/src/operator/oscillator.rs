@@ -50,14 +50,13 @@ use std::sync::Arc;
 use nalgebra::{DMatrix, Matrix2};
 use num_complex::Complex64;
 
-use super::dense::{gemv, gemv_tr, matvec_dd};
-use super::{
-    DD_PROPAGATOR_MAX_DIM, LinearOperator, NodeFunctions, PhiBank, apply_shape, check_bank_scale,
-    check_bank_values, combine_shape,
-};
+use super::checks::{apply_shape, check_bank_scale, check_bank_values, combine_shape};
+use super::entries::{DD_PROPAGATOR_MAX_DIM, NodeFunctions};
+use super::matvec::{gemv, gemv_tr, matvec_dd};
+use super::omega::Omega;
+use super::traits::{LinearOperator, PhiBank};
+use crate::error::{Error, Result};
 use crate::phi::{expm_dd, phi_trig};
-use crate::second_order::Omega;
-use crate::{Error, Result};
 
 /// `A = [[0, I], [−Ω, N]]` on `y = (q, p) ∈ ℝ^{2n}` (see the module docs); `N = 0` unless
 /// built with [`damped`](Self::damped).

@@ -4,12 +4,13 @@ use std::ops::Range;
 
 use nalgebra::DVector;
 
-use super::{
-    Distinct, LinearOperator, NodeFunctions, PhiBank, apply_shape, check_bank_args,
-    check_bank_scale, check_bank_values, combine_shape,
+use super::checks::{
+    apply_shape, check_bank_args, check_bank_scale, check_bank_values, combine_shape,
 };
+use super::entries::{Distinct, NodeFunctions};
+use super::traits::{LinearOperator, PhiBank};
+use crate::error::{Error, Result};
 use crate::phi::{exp_dd, two_prod, two_sum};
-use crate::{Error, Result};
 
 /// `hi + lo = (eh + el) y` for one entry: the product in double-double.
 #[inline]

@@ -4,60 +4,14 @@ use std::ops::Range;
 
 use num_complex::Complex64;
 
-use super::circulant::{add_increment, spectral_block, spectral_entries};
-use super::{
-    Distinct, LinearOperator, NodeFunctions, PhiBank, apply_shape, check_bank_args, combine_shape,
+use super::checks::{apply_shape, check_bank_args, combine_shape};
+use super::entries::{Distinct, NodeFunctions};
+use super::spectral::{
+    SkewGenerator, SpectralBasis, add_increment, spectral_block, spectral_entries,
 };
-use crate::Result;
+use super::traits::{LinearOperator, PhiBank};
 use crate::concurrent::two_phase_combine;
-
-/// A unitary change of basis `V` acting on complex vectors of length n, in which a
-/// [`SkewGenerator`] is diagonal.
-///
-/// `Sync`, with scratch that can be sent to another thread: the banks built on a basis run
-/// their transforms concurrently for large systems
-/// ([`PhiBank::combine_concurrent`](super::PhiBank::combine_concurrent)). A basis is an
-/// immutable plan; the built-in ones are.
-pub trait SpectralBasis: Clone + Sync {
-    /// Scratch memory for one transform.
-    type Scratch: Send;
-
-    /// The length n.
-    fn dim(&self) -> usize;
-
-    /// Fresh scratch memory.
-    fn scratch(&self) -> Self::Scratch;
-
-    /// `u ← V⁻¹ u` (coefficients in the eigenbasis). Does not allocate.
-    fn forward(&self, u: &mut [Complex64], s: &mut Self::Scratch);
-
-    /// `u ← V u`. Does not allocate.
-    fn inverse(&self, u: &mut [Complex64], s: &mut Self::Scratch);
-
-    /// `u ← V diag(f) V⁻¹ u`: a diagonal in the eigenbasis, through the transforms. Does not
-    /// allocate.
-    fn apply_diagonal(&self, f: &[Complex64], u: &mut [Complex64], s: &mut Self::Scratch) {
-        self.forward(u, s);
-        for (b, fv) in u.iter_mut().zip(f) {
-            *b *= fv;
-        }
-        self.inverse(u, s);
-    }
-}
-
-/// A real symmetric operator C that can be diagonalised, `C = V diag(λ) V⁻¹` with real λ:
-/// the generator of a [`SkewPair`]. Implemented by [`Circulant`](super::Circulant) (FFT) and
-/// [`Symmetric`](super::Symmetric) (eigendecomposition).
-pub trait SkewGenerator: LinearOperator {
-    /// The eigenbasis.
-    type Basis: SpectralBasis;
-
-    /// The real eigenvalues and the eigenbasis.
-    ///
-    /// # Errors
-    /// [`Error::InvalidInput`](crate::Error::InvalidInput) if the operator is not symmetric.
-    fn real_spectrum(&self) -> Result<(Vec<f64>, Self::Basis)>;
-}
+use crate::error::Result;
 
 /// `A = [[0, −C], [C, 0]]` of size 2n acting on `y = (p, q)`, C real symmetric.
 ///
@@ -357,9 +311,9 @@ impl<B: SpectralBasis> PhiBank for SkewPairBank<B> {
 
 #[cfg(test)]
 mod tests {
+    use super::super::circulant::Circulant;
+    use super::super::spectral::exp_increment;
     use super::*;
-    use crate::operator::Circulant;
-    use crate::operator::circulant::exp_increment;
 
     /// The skew pair of the second difference on 4 points (spectrum 0, −2, −4, −2 exactly: a
     /// zero and a mirrored pair) gives, bit for bit, the bank evaluated mode by mode.

@@ -9,7 +9,7 @@
 //! doubles, so the reduced argument is accurate to ~ε² for `|k| ≲ 2⁴⁰`, and then evaluate
 //! Taylor polynomials in double-double arithmetic.
 
-use super::{two_prod, two_sum};
+use super::dense::{two_prod, two_sum};
 
 /// `ln 2` as the sum of three doubles (generated with 300-bit mpmath).
 const LN2: [f64; 3] = [

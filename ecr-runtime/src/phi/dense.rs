@@ -3,8 +3,9 @@
 
 use nalgebra::{DMatrix, SMatrix};
 
-use super::{inv_factorial, phi_real};
-use crate::{Error, Result};
+use super::factorial::inv_factorial;
+use super::scalar::{phi_diagonal, phi_real};
+use crate::error::{Error, Result};
 
 /// Scaling target: `‖2^{−s} A‖₁ ≤ THETA`.
 const THETA: f64 = 1.0;
@@ -277,7 +278,7 @@ pub fn phi_symmetric(a: &DMatrix<f64>, p: usize) -> Result<Vec<DMatrix<f64>>> {
     check_symmetric(a, "matrix")?;
     let d = a.nrows();
     let (lambda, q) = symmetric_eigen(a)?;
-    let vals = super::phi_diagonal(&lambda, p);
+    let vals = phi_diagonal(&lambda, p);
     let mut phis = Vec::with_capacity(p + 1);
     let qt = q.transpose();
     let mut qd = q.clone();

@@ -46,7 +46,7 @@ use nalgebra::DMatrix;
 use num_complex::Complex64;
 
 use super::scalar::Field;
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// The Taylor series is used for `|x| ≤` this.
 const TAYLOR_RADIUS: f64 = 0.5;

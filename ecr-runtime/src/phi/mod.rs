@@ -33,10 +33,12 @@
 
 mod dd;
 mod dense;
+mod factorial;
 mod legendre;
 mod scalar;
 
 pub use dense::{phi_dense, phi_dense_static, phi_symmetric};
+pub use factorial::{INV_FACTORIAL, inv_factorial};
 pub use legendre::LegendreKernels;
 pub use scalar::{phi_complex, phi_diagonal, phi_real, phi_trig};
 
@@ -44,61 +46,3 @@ pub(crate) use dd::{Dd, cexp_dd, exp_dd};
 pub(crate) use dense::{
     check_symmetric, expm_dd, symmetric_eigen, two_prod, two_sum, validate as validate_matrix,
 };
-
-/// `1/k!` for `k = 0..=32`, correctly rounded to `f64`.
-///
-/// Generated with Python's `float(Fraction(1, factorial(k)))` (correctly rounded division of
-/// integers); tests/phi.rs checks every entry against `BigRational::to_f64`.
-pub const INV_FACTORIAL: [f64; 33] = [
-    1.0,                    // 1/0!
-    1.0,                    // 1/1!
-    0.5,                    // 1/2!
-    0.16666666666666666,    // 1/3!
-    0.041666666666666664,   // 1/4!
-    0.008333333333333333,   // 1/5!
-    0.001388888888888889,   // 1/6!
-    0.0001984126984126984,  // 1/7!
-    2.48015873015873e-05,   // 1/8!
-    2.7557319223985893e-06, // 1/9!
-    2.755731922398589e-07,  // 1/10!
-    2.505210838544172e-08,  // 1/11!
-    2.08767569878681e-09,   // 1/12!
-    1.6059043836821613e-10, // 1/13!
-    1.1470745597729725e-11, // 1/14!
-    7.647163731819816e-13,  // 1/15!
-    4.779477332387385e-14,  // 1/16!
-    2.8114572543455206e-15, // 1/17!
-    1.5619206968586225e-16, // 1/18!
-    8.22063524662433e-18,   // 1/19!
-    4.110317623312165e-19,  // 1/20!
-    1.9572941063391263e-20, // 1/21!
-    8.896791392450574e-22,  // 1/22!
-    3.868170170630684e-23,  // 1/23!
-    1.6117375710961184e-24, // 1/24!
-    6.446950284384474e-26,  // 1/25!
-    2.4795962632247976e-27, // 1/26!
-    9.183689863795546e-29,  // 1/27!
-    3.279889237069838e-30,  // 1/28!
-    1.1309962886447716e-31, // 1/29!
-    3.7699876288159054e-33, // 1/30!
-    1.216125041553518e-34,  // 1/31!
-    3.8003907548547434e-36, // 1/32!
-];
-
-/// `1/k!` as `f64`: correctly rounded for `k ≤ 32` ([`INV_FACTORIAL`]); beyond, by division
-/// from `1/32!` (relative error ≤ (k − 32)·2⁻⁵³ + 2⁻⁵³), underflowing to 0 for `k > 177`.
-#[inline]
-pub fn inv_factorial(k: usize) -> f64 {
-    if k < INV_FACTORIAL.len() {
-        INV_FACTORIAL[k]
-    } else {
-        let mut v = INV_FACTORIAL[INV_FACTORIAL.len() - 1];
-        for j in INV_FACTORIAL.len()..=k {
-            v /= j as f64;
-            if v == 0.0 {
-                break;
-            }
-        }
-        v
-    }
-}

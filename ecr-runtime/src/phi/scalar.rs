@@ -12,7 +12,7 @@
 use num_complex::Complex64;
 use std::ops::{Add, Mul, Sub};
 
-use super::inv_factorial;
+use super::factorial::inv_factorial;
 
 /// Real part above which the upward recurrence runs on `e^{−σ}`-scaled values (`e^z` alone
 /// would overflow near `Re z ≈ 709.8`, while `φ_k(z) ≈ e^z/z^k` may still fit).
@@ -408,7 +408,7 @@ fn upward_scaled<T: Field>(z: T, out: &mut [T]) {
 /// Extremes: for large negative `z`, `e^z` underflows gracefully to 0 while `φ_k(z) ≈
 /// 1/((k−1)!|z|)`; for large positive `z` values beyond `f64::MAX` are `+∞`; `φ_k(−∞) = 0`,
 /// `φ_k(+∞) = +∞`; NaN gives NaN. Never panics. For `k > 32` the constant `1/k!` is itself
-/// not correctly rounded (see [`inv_factorial`](super::inv_factorial)).
+/// not correctly rounded (see [`inv_factorial`]).
 ///
 /// Allocates only when `out.len() > 40`.
 pub fn phi_real(z: f64, out: &mut [f64]) {

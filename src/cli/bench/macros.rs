@@ -4,13 +4,13 @@
 //! stage solver. Bit-identical to the run-time stepper's steps (tests/macro_stepper.rs), so
 //! the two series differ only in time.
 
-use super::sweep::{Family, GCostFn, Knob, Series, solver, stepped, time_g};
+use super::series::{
+    BuildFn, Family, GCostFn, Knob, Series, solver, static_system, stepped, time_g,
+};
 use crate::cli::reproduce::methods::boxed;
 use ecr::problems::{Duffing, Nls, Wind};
 use ecr_runtime::ecr_method;
-use ecr_runtime::nalgebra::{DMatrix, SMatrix};
-use ecr_runtime::operator::DenseStatic;
-use ecr_runtime::system::Semilinear;
+use ecr_runtime::nalgebra::DMatrix;
 
 ecr_method!(r = 1);
 ecr_method!(r = 2);
@@ -19,26 +19,7 @@ ecr_method!(r = 4);
 ecr_method!(r = 5);
 ecr_method!(r = 6);
 
-fn static_2x2(a: &DMatrix<f64>) -> ecr_runtime::Result<DenseStatic<2>> {
-    DenseStatic::new(SMatrix::<f64, 2, 2>::from_iterator(a.iter().copied()))
-}
-
-/// y' = Ay + g(y) with a 2 × 2 A as a static matrix and g a closure: how a user writes a
-/// small system.
-pub fn static_system<G: Fn(&[f64], &mut [f64])>(
-    a: &DMatrix<f64>,
-    g: G,
-) -> ecr_runtime::Result<Semilinear<DenseStatic<2>, G>> {
-    Ok(Semilinear::new(static_2x2(a)?, g))
-}
-
-fn series(
-    r: usize,
-    h0: f64,
-    group: &'static str,
-    build: super::sweep::BuildFn,
-    g_cost: GCostFn,
-) -> Series {
+fn series(r: usize, h0: f64, group: &'static str, build: BuildFn, g_cost: GCostFn) -> Series {
     Series {
         label: format!("EC{r}P macro"),
         group,
@@ -66,12 +47,12 @@ macro_rules! static_series {
                     $h0,
                     $group,
                     Box::new(move |h| {
-                        let sys = Semilinear::new(static_2x2(&a)?, g.clone());
+                        let sys = static_system(&a, g.clone())?;
                         let st: $ty<_, 2> = $ty::with_settings(sys, h, solver())?;
                         stepped(boxed(Ok(st)))
                     }),
                     Box::new(move |states, n, repeats| {
-                        let sys = Semilinear::new(static_2x2(&a2)?, g2.clone());
+                        let sys = static_system(&a2, g2.clone())?;
                         Ok(time_g(&sys, states, n, repeats))
                     }),
                 ));

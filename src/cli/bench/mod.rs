@@ -9,6 +9,7 @@
 mod macros;
 mod peers;
 mod scaling;
+mod series;
 mod summary;
 mod sweep;
 

@@ -13,8 +13,7 @@
 //!
 //! DOP853 (one call over [0, T]) is added to every problem by the sweep.
 
-use super::macros::static_system;
-use super::sweep::{K, OMEGA, Series, step_series};
+use super::series::{K, OMEGA, Series, static_system, step_series};
 use crate::cli::reproduce::methods::boxed;
 use ecr::baselines::etdrk4::Etdrk4;
 use ecr::baselines::split_step::SplitStep;

@@ -86,7 +86,8 @@ fn measure<C: SkewGenerator, S: System<Op = SkewPair<C>>>(
 ) -> Result<ScalingPoint, String> {
     let d = y0.len();
     let start = Instant::now();
-    let mut stepper = EcStepper::with_nodes(sys, R, R, H, super::sweep::solver()).map_err(err_s)?;
+    let mut stepper =
+        EcStepper::with_nodes(sys, R, R, H, super::series::solver()).map_err(err_s)?;
     let setup_seconds = start.elapsed().as_secs_f64();
     let e0 = nls_energy(stepper.system().linear(), &y0);
     let mut y = y0;

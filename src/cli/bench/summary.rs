@@ -6,9 +6,9 @@
 //! stepper's at equal r and h.
 
 use super::scaling::{self, Scaling};
+use super::series::{Family, solver};
 use super::sweep::{
-    Config, DopOverhead, ERROR_CEILING, ERROR_FLOOR, Family, G_REPEATS, LongRun, Point, ProblemRun,
-    Results, solver,
+    Config, DopOverhead, ERROR_CEILING, ERROR_FLOOR, G_REPEATS, LongRun, Point, ProblemRun, Results,
 };
 use std::fmt::Write;
 

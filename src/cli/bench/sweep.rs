@@ -2,31 +2,24 @@
 //! (DOP853: tolerances), each point timed (median of repeated runs, set-up included and also
 //! reported alone) and measured (global error against a reference, max relative energy error).
 
+use super::series::{
+    BoxedRun, BuildFn, Family, GCostFn, K, Knob, OMEGA, Observe, Run, Series, solver,
+    static_system, step_series, stepped, time_g,
+};
 use super::{macros, peers};
 use crate::cli::reproduce::methods::{
-    self as registry, BoxedIntegrator, Dyn, Problem, boxed, ec, on_system,
+    self as registry, BoxedIntegrator, Problem, boxed, ec, on_system,
 };
 use ecr::baselines::collocation::{ExpAvf, avf, gauss_collocation, rkepc2};
 use ecr::baselines::dop853::Dop853;
 use ecr::baselines::exponential::HochOst4;
 use ecr::problems::{Duffing, Nls, Wind};
-use ecr_runtime::integrate::{IntegrateOptions, integrate};
 use ecr_runtime::second_order::{SecondOrderForm, TcStepper};
 use ecr_runtime::solve::{Options, Problem as SolveProblem};
-use ecr_runtime::stepper::{EcStepper, Predictor, SolverSettings};
+use ecr_runtime::stepper::EcStepper;
 use ecr_runtime::system::System;
-use std::hint::black_box;
 use std::ops::ControlFlow;
 use std::time::Instant;
-
-/// The stage solver of every implicit method in the benchmark (ECrP, TCrP, HBVM family):
-/// the defaults (tolerance 1e-15, convergence required) with the extrapolating predictor.
-pub fn solver() -> SolverSettings {
-    SolverSettings {
-        predictor: Predictor::Extrapolate,
-        ..SolverSettings::default()
-    }
-}
 
 /// Stop refining a series once its global error is below this (a decade below the smallest
 /// target, so that the cost of 1e−12 is interpolated, not extrapolated).
@@ -102,73 +95,6 @@ impl Config {
     }
 }
 
-/// What a series sweeps over.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Knob {
-    /// Step sizes h0/2^i.
-    Step { h0: f64 },
-    /// DOP853 tolerances (rtol = atol), one call over [0, T].
-    Tol,
-}
-
-/// Which kind of method a series is: the summary compares the best of this project's
-/// methods (run-time and `ecr_method!` steppers) with the best peer.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Family {
-    /// ECrP/TCrP with the run-time-r stepper (what `ecr run` uses).
-    Runtime,
-    /// ECrP with the fixed-order stepper of `ecr_method!`.
-    Macro,
-    /// Any other method.
-    Peer,
-}
-
-impl Family {
-    /// This project's methods (either stepper).
-    pub fn is_ours(self) -> bool {
-        self != Family::Peer
-    }
-}
-
-/// Called with the state after every step.
-pub type Observe<'a> = &'a mut dyn FnMut(&[f64]);
-
-/// A method ready to integrate, its set-up done.
-pub trait Run {
-    /// Integrates y over [0, t_end] in place, calling `observe(y)` after every step when
-    /// given (accepted steps for adaptive methods).
-    /// Returns the evaluations of g the method reports (DOP853: of f = Ay + g).
-    fn run(
-        &mut self,
-        y: &mut [f64],
-        t_end: f64,
-        observe: Option<Observe<'_>>,
-    ) -> Result<usize, String>;
-}
-
-/// A fixed-step integrator, driven by [`integrate`].
-struct Stepped(Dyn);
-
-impl Run for Stepped {
-    fn run(
-        &mut self,
-        y: &mut [f64],
-        t_end: f64,
-        observe: Option<Observe<'_>>,
-    ) -> Result<usize, String> {
-        let options = IntegrateOptions {
-            energy_every: 0,
-            observe_every: usize::from(observe.is_some()),
-        };
-        match observe {
-            Some(f) => integrate(&mut self.0, 0.0, t_end, y, options, |_, y, _| f(y)),
-            None => integrate(&mut self.0, 0.0, t_end, y, options, |_, _, _| {}),
-        }
-        .map(|report| report.g_evals)
-        .map_err(err_s)
-    }
-}
-
 /// DOP853: one call of the crate over [0, T].
 impl<S: System> Run for Dop853<S> {
     fn run(
@@ -232,62 +158,15 @@ fn solve_series(problem: &Problem) -> Series {
     }
 }
 
-/// A built method.
-pub type BoxedRun = Box<dyn Run>;
-
-/// Wraps a fixed-step integrator as a [`Run`].
-pub fn stepped(integrator: ecr_runtime::Result<BoxedIntegrator>) -> ecr_runtime::Result<BoxedRun> {
-    Ok(Box::new(Stepped(Dyn(integrator?))))
-}
-
-/// Builds a series's method for h (or tol).
-pub type BuildFn = Box<dyn Fn(f64) -> ecr_runtime::Result<BoxedRun>>;
 type Build = BuildFn;
 /// A registered method's constructor.
 type RegistryBuild = fn(&Problem, f64) -> ecr_runtime::Result<BoxedIntegrator>;
-/// Times `n` evaluations of the g a series' stepper calls, cycling through the given states;
-/// returns the fastest of `repeats` timings (seconds).
-pub type GCostFn = Box<dyn Fn(&[Vec<f64>], usize, usize) -> ecr_runtime::Result<f64>>;
-
-/// The fastest of `repeats` timings of `n` evaluations of `sys`'s g (what its stepper calls on
-/// the hot path, with the same scratch), cycling through `states`; `black_box` keeps every
-/// evaluation (nothing hoisted, no output dropped).
-pub fn time_g<S: System>(sys: &S, states: &[Vec<f64>], n: usize, repeats: usize) -> f64 {
-    let mut out = vec![0.0; sys.dim()];
-    let mut scratch = vec![0.0; sys.scratch_len()];
-    let mut best = f64::INFINITY;
-    for _ in 0..repeats.max(1) {
-        let start = Instant::now();
-        for y in states.iter().cycle().take(n) {
-            sys.nonlinear(black_box(y), black_box(&mut out), black_box(&mut scratch));
-        }
-        black_box(&out);
-        best = best.min(start.elapsed().as_secs_f64());
-    }
-    best
-}
 
 /// The g-evaluation cost of the problem's own `System` (what [`ec`] builds the run-time
 /// stepper on): `Duffing::nonlinear`, `Wind::nonlinear`, `Nls::nonlinear`.
 fn problem_g_cost(problem: &Problem) -> GCostFn {
     let p = problem.clone();
     Box::new(move |states, n, repeats| on_system!(&p, sys => Ok(time_g(&sys, states, n, repeats))))
-}
-
-/// One curve: a method with fixed parameters.
-pub struct Series {
-    pub label: String,
-    /// Panel of the figures it is drawn in.
-    pub group: &'static str,
-    pub family: Family,
-    pub r: Option<usize>,
-    pub s: Option<usize>,
-    pub knob: Knob,
-    /// Builds the integrator for h (Step) or tol (Tol).
-    pub build: Build,
-    /// This project's series: the cost of evaluating its stepper's g (the points record their
-    /// g evaluations and that cost).
-    pub g_cost: Option<GCostFn>,
 }
 
 /// One measured point.
@@ -397,7 +276,7 @@ fn dop_overhead(c: &Config) -> Result<DopOverhead, String> {
         let d = d.clone();
         move |y: &[f64], o: &mut [f64]| d.nonlinear(y, o)
     };
-    let system = macros::static_system(&d.linear_matrix(), g).map_err(err_s)?;
+    let system = static_system(&d.linear_matrix(), g).map_err(err_s)?;
     let wrapper = Dop853::new(system, tol, tol).map_err(err_s)?;
     // The same f as the direct call: g written out (ω² + k² in A, 2k²q³ in g).
     let cubic = 2.0 * K * K;
@@ -406,7 +285,7 @@ fn dop_overhead(c: &Config) -> Result<DopOverhead, String> {
         o[1] = cubic * y[0] * y[0] * y[0];
     };
     let same_f = Dop853::new(
-        macros::static_system(&d.linear_matrix(), inline_g).map_err(err_s)?,
+        static_system(&d.linear_matrix(), inline_g).map_err(err_s)?,
         tol,
         tol,
     )
@@ -459,9 +338,6 @@ fn dop_overhead(c: &Config) -> Result<DopOverhead, String> {
     })
 }
 
-/// Duffing of the benchmark.
-pub const OMEGA: f64 = 20.0;
-pub const K: f64 = 0.07;
 /// NLS grid.
 pub const NLS_N: usize = 128;
 /// ECrP on the NLS: r = 1..NLS_MAX_R (run-time, circulant and dense, and macro).
@@ -698,24 +574,6 @@ fn ec_series(problem: &Problem, r: usize, s: usize, h0: f64, group: &'static str
     }
 }
 
-pub fn step_series(
-    label: &str,
-    group: &'static str,
-    h0: f64,
-    build: impl Fn(f64) -> ecr_runtime::Result<BoxedIntegrator> + 'static,
-) -> Series {
-    Series {
-        label: label.to_string(),
-        group,
-        family: Family::Peer,
-        r: None,
-        s: None,
-        knob: Knob::Step { h0 },
-        build: Box::new(move |h| stepped(build(h))),
-        g_cost: None,
-    }
-}
-
 /// DOP853 as its users call it: f written as a user would (for the 2 × 2 problems A as a
 /// static matrix and g a closure; the NLS with its FFT operator), one call over [0, T].
 fn dop_series(problem: &Problem) -> Series {
@@ -729,7 +587,7 @@ fn dop_series(problem: &Problem) -> Series {
         knob: Knob::Tol,
         build: Box::new(move |tol| match &p {
             Problem::Duffing(d) => {
-                let sys = macros::static_system(&d.linear_matrix(), {
+                let sys = static_system(&d.linear_matrix(), {
                     let d = d.clone();
                     move |y: &[f64], o: &mut [f64]| d.nonlinear(y, o)
                 })?;
@@ -737,10 +595,9 @@ fn dop_series(problem: &Problem) -> Series {
             }
             Problem::Wind(w) => {
                 let w = *w;
-                let sys =
-                    macros::static_system(&w.linear_matrix(), move |y: &[f64], o: &mut [f64]| {
-                        w.nonlinear(y, o)
-                    })?;
+                let sys = static_system(&w.linear_matrix(), move |y: &[f64], o: &mut [f64]| {
+                    w.nonlinear(y, o)
+                })?;
                 Ok(Box::new(Dop853::new(sys, tol, tol)?) as BoxedRun)
             }
             Problem::Nls(n) => Ok(Box::new(Dop853::new(n.system()?, tol, tol)?) as BoxedRun),
@@ -812,22 +669,6 @@ fn tc_series(r: usize, h0: f64) -> Series {
         let form = SecondOrderForm::new(peers::second_order()?)?;
         Ok(time_g(&form, states, n, repeats))
     }))
-}
-
-impl Series {
-    fn with_rs(mut self, r: usize, s: usize) -> Self {
-        self.r = Some(r);
-        self.s = Some(s);
-        self
-    }
-
-    /// Marks a series as one of this project's methods with the run-time stepper, whose g
-    /// costs `g_cost`.
-    fn ours(mut self, g_cost: GCostFn) -> Self {
-        self.family = Family::Runtime;
-        self.g_cost = Some(g_cost);
-        self
-    }
 }
 
 #[allow(clippy::too_many_arguments)]

@@ -1,0 +1,448 @@
+//! The stepper ([`Stepper`]): its construction, the kernel bank for the step size, and the
+//! algorithm of one step, whose parts are the methods of [`StepContext`].
+
+use std::marker::PhantomData;
+
+use super::buffers::{BufferParts, Buffers, VecBuffers};
+use super::context::{Bank, BankWorkspace, StepContext};
+use super::fused::{FusedMaps, fused_maps, fuses_stages};
+use super::kernel::{FixedKernel, Kernel, RuntimeKernel, kernel_coefficients};
+use super::newton::{NewtonState, newton_entries};
+use super::parallel::ParallelState;
+use super::settings::{Predictor, SolverSettings, StageScale, StageSolver, StepReport, SweepLimit};
+use super::stopping::{Y1_OVERFLOWED, all_finite, g_fault};
+use crate::error::{Error, Result};
+use crate::operator::{LinearOperator, PhiBank};
+use crate::storage::ensure_allocatable;
+use crate::system::System;
+
+/// ECrP for a [`System`] with kernel `K` and stage storage `B`.
+pub struct Stepper<K: Kernel, S: System, B: Buffers> {
+    kernel: K,
+    system: S,
+    settings: SolverSettings,
+    h: f64,
+    bank: Bank<S>,
+    ws: BankWorkspace<S>,
+    /// r coefficients h τ^{k+1} per bank node τ = c₁..c_s, 1 (and 1 + c₁..1 + c_s with the
+    /// extrapolating predictor).
+    coef: Vec<f64>,
+    scratch: Vec<f64>,
+    /// The step as dense maps ([`FusedMaps`]), where that is cheaper (see [`fuses_stages`]);
+    /// otherwise `None` and each sweep forms the moments and combines.
+    fused: Option<FusedMaps>,
+    buf: B,
+    /// The buffers hold a completed step (y₀, moments, and its end in `last`) for this h.
+    have_previous: bool,
+    /// Newton data ([`StageSolver::Newton`], [`StageSolver::SimplifiedNewton`]), built at the
+    /// first step for this h.
+    newton: Option<Box<NewtonState>>,
+    /// The largest ratio of consecutive stage updates in the last completed step (1 when there
+    /// is none): the floor of the contraction estimate of [`y1_converged`].
+    theta: f64,
+    /// The memory of the concurrent stage path, for d ≥
+    /// [`SolverSettings::parallel_min_dim`] (else `None`: the serial path).
+    par: Option<Box<ParallelState<BankWorkspace<S>>>>,
+}
+
+/// ECrP with r and s chosen at run time.
+pub type EcStepper<S> = Stepper<RuntimeKernel, S, VecBuffers>;
+
+impl<S: System> Stepper<RuntimeKernel, S, VecBuffers> {
+    /// ECrP with s = r (the paper's method) and step size h.
+    ///
+    /// # Errors
+    /// As [`EcStepper::with_nodes`].
+    pub fn new(system: S, r: usize, h: f64) -> Result<Self> {
+        Self::with_nodes(system, r, r, h, SolverSettings::default())
+    }
+
+    /// ECrP with r moments, s ≥ r Gauss–Legendre points, step size h and solver settings.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] for r, s out of range or bad settings,
+    /// [`Error::InvalidStepSize`] for h, and whatever building the φ-bank reports.
+    pub fn with_nodes(
+        system: S,
+        r: usize,
+        s: usize,
+        h: f64,
+        settings: SolverSettings,
+    ) -> Result<Self> {
+        check_settings(&settings)?;
+        Self::from_kernel(RuntimeKernel::new(r, s)?, system, h, settings)
+    }
+}
+
+impl<K: FixedKernel, S: System, B: Buffers> Stepper<K, S, B> {
+    /// The fixed-order stepper with default solver settings.
+    ///
+    /// # Errors
+    /// As [`Stepper::from_kernel`].
+    pub fn fixed(system: S, h: f64) -> Result<Self> {
+        Self::from_kernel(K::default(), system, h, SolverSettings::default())
+    }
+}
+
+fn check_settings(settings: &SolverSettings) -> Result<()> {
+    settings.validate()
+}
+
+impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
+    /// A stepper from its parts: allocates the buffers and builds the φ-bank for h.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] for bad settings, [`Error::InvalidStepSize`] for h,
+    /// [`Error::DimensionMismatch`] if fixed-size buffers do not fit the system, the errors of
+    /// [`check_system`](crate::system::check_system), [`Error::InvalidInput`] naming the size
+    /// if [`StageSolver::Newton`]'s `O(s²d²)` matrices cannot be allocated (checked here,
+    /// before the first step would abort on them), and whatever building the φ-bank reports.
+    pub fn from_kernel(kernel: K, system: S, h: f64, settings: SolverSettings) -> Result<Self> {
+        check_settings(&settings)?;
+        crate::system::check_system(&system)?;
+        if settings.solver != StageSolver::FixedPoint {
+            let (s, d) = (kernel.s(), system.dim());
+            ensure_allocatable(
+                &format!("Newton for d = {d}, s = {s} (2s²d² + 2d² + 3sd numbers)"),
+                newton_entries(s, d),
+            )?;
+        }
+        let buf = B::with_sizes(kernel.r(), kernel.s(), system.dim())?;
+        let (bank, coef, fused, ws) = Self::build_bank(&system, &kernel, h, settings.predictor)?;
+        let par = ParallelState::new(
+            &kernel,
+            &bank,
+            settings.parallel_min_dim,
+            system.scratch_len(),
+        );
+        Ok(Stepper {
+            scratch: vec![0.0; system.scratch_len()],
+            kernel,
+            system,
+            settings,
+            h,
+            bank,
+            ws,
+            coef,
+            fused,
+            buf,
+            have_previous: false,
+            newton: None,
+            theta: 1.0,
+            par,
+        })
+    }
+
+    /// The kernel bank for h, its combine coefficients, the step as dense maps (where
+    /// [`fuses_stages`]) and a workspace.
+    #[allow(clippy::type_complexity)]
+    fn build_bank(
+        system: &S,
+        kernel: &K,
+        h: f64,
+        predictor: Predictor,
+    ) -> Result<(Bank<S>, Vec<f64>, Option<FusedMaps>, BankWorkspace<S>)> {
+        if !(h.is_finite() && h > 0.0) {
+            return Err(Error::InvalidStepSize(h));
+        }
+        let r = kernel.r();
+        let mut taus = kernel.nodes().to_vec();
+        taus.push(1.0);
+        if predictor == Predictor::Extrapolate {
+            taus.extend(kernel.nodes().iter().map(|c| 1.0 + c));
+        }
+        let bank = system.linear().kernel_bank(h, &taus, r)?;
+        let coef = kernel_coefficients(h, &taus, r);
+        let mut ws = bank.workspace();
+        let fused = fuses_stages(&bank, r, kernel.s()).then(|| {
+            let extrapolate = predictor == Predictor::Extrapolate;
+            fused_maps(kernel, &bank, &coef, &mut ws, system.dim(), extrapolate)
+        });
+        Ok((bank, coef, fused, ws))
+    }
+
+    /// Changes the step size (rebuilds the φ-bank: call it rarely).
+    ///
+    /// # Errors
+    /// [`Error::InvalidStepSize`] and whatever building the φ-bank reports.
+    pub fn set_step_size(&mut self, h: f64) -> Result<()> {
+        if h == self.h {
+            return Ok(());
+        }
+        let (bank, coef, fused, ws) =
+            Self::build_bank(&self.system, &self.kernel, h, self.settings.predictor)?;
+        // The concurrent path's workspaces are the new bank's (the old ones go first).
+        self.par = None;
+        self.par = ParallelState::new(
+            &self.kernel,
+            &bank,
+            self.settings.parallel_min_dim,
+            self.system.scratch_len(),
+        );
+        self.ws = ws;
+        self.bank = bank;
+        self.coef = coef;
+        self.fused = fused;
+        self.h = h;
+        self.have_previous = false;
+        self.newton = None;
+        self.theta = 1.0;
+        Ok(())
+    }
+
+    /// The step size.
+    pub fn step_size(&self) -> f64 {
+        self.h
+    }
+
+    /// r (order 2r).
+    pub fn r(&self) -> usize {
+        self.kernel.r()
+    }
+
+    /// Number of quadrature points.
+    pub fn s(&self) -> usize {
+        self.kernel.s()
+    }
+
+    /// The fused stage matrices ([`stage_matrices`](super::stage_matrices): one column-major `sd ×
+    /// sd` matrix, for [`gemv_cm`](super::gemv_cm)) if this stepper fuses its step
+    /// ([`fuses_stages`]).
+    pub fn stage_matrices(&self) -> Option<&[f64]> {
+        self.fused.as_ref().map(|f| f.stage.as_slice())
+    }
+
+    /// The step as dense maps, if this stepper fuses it ([`fuses_stages`]).
+    pub fn fused_maps(&self) -> Option<&FusedMaps> {
+        self.fused.as_ref()
+    }
+
+    /// The φ-bank (kernel bank) of the step size: nodes c₁..c_s, then 1 (then 1 + cᵢ with the
+    /// extrapolating predictor).
+    pub fn bank(&self) -> &<S::Op as LinearOperator>::Bank {
+        &self.bank
+    }
+
+    /// The kernel.
+    pub fn kernel(&self) -> &K {
+        &self.kernel
+    }
+
+    /// The system.
+    pub fn system(&self) -> &S {
+        &self.system
+    }
+
+    /// The solver settings.
+    pub fn settings(&self) -> SolverSettings {
+        self.settings
+    }
+
+    /// Advances y by one step of size h in place. Allocation-free.
+    ///
+    /// # Errors
+    /// [`Error::DimensionMismatch`] for a wrong length, [`Error::NonFinite`] if y or g(Y) is
+    /// NaN/infinite or the iteration diverges, [`Error::Overflow`] if the stage values or y₁
+    /// overflow while the iteration is not diverging (the solution leaves the f64 range within
+    /// the step, or h is unstable for it), [`Error::NoConvergence`] if the sweeps do not
+    /// converge and [`SweepLimit::Error`] is set. On error, y is unchanged.
+    pub fn step(&mut self, y: &mut [f64]) -> Result<StepReport> {
+        // One compiled step per stage solver kind and scale, so that the fixed-point sweeps in
+        // the global scale (the small steppers' hot path) carry no code of the others.
+        let newton = self.settings.solver != StageSolver::FixedPoint;
+        if !B::LOCAL_STAGES && self.par.is_some() {
+            return self.step_concurrent(y);
+        }
+        match (newton, self.settings.scale) {
+            (false, StageScale::Global) => self.step_with::<false, false, false>(y),
+            (false, StageScale::PerComponent { .. }) => self.step_with::<false, true, false>(y),
+            (true, StageScale::Global) => self.step_with::<true, false, false>(y),
+            (true, StageScale::PerComponent { .. }) => self.step_with::<true, true, false>(y),
+        }
+    }
+
+    /// [`step`](Self::step) on the concurrent stage path of large systems
+    /// ([`SolverSettings::parallel_min_dim`]): compiled apart, so that the serial steps carry
+    /// none of its code.
+    #[inline(never)]
+    fn step_concurrent(&mut self, y: &mut [f64]) -> Result<StepReport> {
+        let newton = self.settings.solver != StageSolver::FixedPoint;
+        match (newton, self.settings.scale) {
+            (false, StageScale::Global) => self.step_with::<false, false, true>(y),
+            (false, StageScale::PerComponent { .. }) => self.step_with::<false, true, true>(y),
+            (true, StageScale::Global) => self.step_with::<true, false, true>(y),
+            (true, StageScale::PerComponent { .. }) => self.step_with::<true, true, true>(y),
+        }
+    }
+
+    /// [`step`](Self::step) with Newton (`NEWTON`, else fixed-point sweeps) and the
+    /// per-component scale (`PER_COMPONENT`, else the global one), as the settings say, on the
+    /// concurrent stage path (`PAR`) or the serial one.
+    ///
+    /// The algorithm of one step: the start of the stage iteration ([`StepContext::start`]),
+    /// sweeps until the stopping rule holds ([`StepContext::iterate`]), the step formula
+    /// ([`StepContext::finish`]). Each part is always inlined, so that fixed-size stage state
+    /// stays in registers.
+    fn step_with<const NEWTON: bool, const PER_COMPONENT: bool, const PAR: bool>(
+        &mut self,
+        y: &mut [f64],
+    ) -> Result<StepReport> {
+        // Compile-time constants for fixed-size storage (checked against the kernel and the
+        // system when the buffers were made).
+        let (m, s, d) = B::SIZES.unwrap_or((self.kernel.r(), self.kernel.s(), self.buf.dim()));
+        if y.len() != d {
+            return Err(Error::DimensionMismatch {
+                what: "state y",
+                expected: d,
+                found: y.len(),
+            });
+        }
+        if !all_finite(y) {
+            return Err(Error::NonFinite("state y"));
+        }
+        let Stepper {
+            kernel,
+            system,
+            settings,
+            bank,
+            ws,
+            coef,
+            scratch,
+            fused,
+            buf,
+            have_previous,
+            newton,
+            theta,
+            par,
+            ..
+        } = self;
+        buf.with_parts(|parts| {
+            let BufferParts {
+                y0,
+                stages,
+                new_stages,
+                props,
+                g,
+                moments,
+                last,
+                comp,
+                tmp,
+            } = parts;
+            // Only a completed step that ended exactly at y may seed the predictor or hand on its
+            // rounding error; a failed step leaves no usable previous step.
+            let continuing = std::mem::take(have_previous) && *last == *y;
+            if !continuing {
+                comp.fill(0.0);
+            }
+            // The contraction seen in the step before (none known after a jump).
+            let theta_floor = if continuing { *theta } else { 1.0 };
+            let mut cx = StepContext::<K, S, B> {
+                kernel,
+                system,
+                settings,
+                bank,
+                ws,
+                coef,
+                scratch,
+                fused: fused.as_ref(),
+                // The concurrent path (large d; never with fixed-size buffers, which are for
+                // small systems). `None` at compile time on the serial path.
+                par: if B::LOCAL_STAGES || !PAR {
+                    None
+                } else {
+                    par.as_deref_mut()
+                },
+                sizes: (m, s, d),
+                buffers: PhantomData,
+            };
+            // Newton: the Newton matrix at y₀, factorised.
+            let mut newton = if NEWTON {
+                Some(cx.newton_start(newton, y)?)
+            } else {
+                None
+            };
+            // The first iterate: the previous step extrapolated, or y₀ at every stage.
+            let extrapolate = continuing && settings.predictor == Predictor::Extrapolate;
+            let start_evals = cx.start(extrapolate, y, y0, moments, stages, props, g)?;
+            // Sweeps until the stopping rule holds.
+            let it = cx.iterate::<NEWTON, PER_COMPONENT>(
+                y0,
+                stages,
+                new_stages,
+                props,
+                g,
+                moments,
+                theta_floor,
+                newton.as_mut(),
+            )?;
+            if !it.converged && settings.on_limit == SweepLimit::Error {
+                if let Some(what) = g_fault(g, it.global) {
+                    return Err(Error::NonFinite(what));
+                }
+                return Err(Error::NoConvergence {
+                    sweeps: it.sweeps,
+                    residual: it.residual,
+                    tolerance: settings.tolerance,
+                });
+            }
+            // y₁ from g at the stages.
+            cx.finish(y0, g, moments, y, last, comp, tmp);
+            if !all_finite(y) {
+                y.copy_from_slice(y0);
+                // g is not checked per sweep: a non-finite g makes the next stages non-finite
+                // (caught by the residual) or, at the last sweep, y₁.
+                return Err(
+                    g_fault(g, it.global).map_or(Error::Overflow(Y1_OVERFLOWED), Error::NonFinite)
+                );
+            }
+            last.copy_from_slice(y);
+            *have_previous = true;
+            *theta = if it.theta_step > 0.0 {
+                it.theta_step
+            } else {
+                theta_floor
+            };
+            let (jacobian_evals, newton_refreshes, newton_evals) =
+                newton.map_or((0, 0, 0), |n| (n.jacobian_evals, n.refreshes, n.g_evals));
+            Ok(StepReport {
+                sweeps: it.sweeps,
+                residual: it.residual,
+                g_evals: start_evals + newton_evals + it.g_evals,
+                converged: it.converged,
+                jacobian_evals,
+                newton_refreshes,
+            })
+        })
+    }
+
+    /// Dense output of the last step: ũ(τ) = φ₀(τhA)y₀ + h Σ_k τ^{k+1} φ_{k+1}(τhA) G_k, for
+    /// τ ∈ [0, 1] (the method's continuous solution, paper eq. `EEPCr`; evaluated in the
+    /// Legendre form of the module docs). Builds a kernel bank for τ, so it allocates: use it
+    /// for output, not in a hot loop.
+    ///
+    /// # Errors
+    /// [`Error::NoCompletedStep`] before the first step, after a failed step and after
+    /// [`set_step_size`](Self::set_step_size) (the buffers then hold no step of this h),
+    /// [`Error::InvalidInput`] for τ outside [0, 1], and whatever building the bank reports.
+    pub fn dense_output(&self, tau: f64) -> Result<Vec<f64>> {
+        if !self.have_previous {
+            return Err(Error::NoCompletedStep);
+        }
+        if !(0.0..=1.0).contains(&tau) {
+            return Err(Error::InvalidInput(format!(
+                "dense output needs 0 <= tau <= 1, got {tau:?}"
+            )));
+        }
+        let y0 = self.buf.y0();
+        if tau == 0.0 {
+            return Ok(y0.to_vec());
+        }
+        let r = self.kernel.r();
+        let mut out = vec![0.0; y0.len()];
+        let bank = self.system.linear().kernel_bank(self.h, &[tau], r)?;
+        let mut ws = bank.workspace();
+        let coef = kernel_coefficients(self.h, &[tau], r);
+        bank.combine(0..1, y0, self.buf.moments(), &coef, &mut out, &mut ws);
+        Ok(out)
+    }
+}
