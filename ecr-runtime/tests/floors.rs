@@ -107,10 +107,7 @@ fn no_import_runs_back_up_a_floor() {
                     "lib".to_string()
                 };
                 let to = floor(&target).unwrap();
-                // solve.rs (being rewritten as solve/) still takes Error and Result from the
-                // root: the rewrite imports them from `crate::error`.
-                let known = module == "solve" && matches!(name.as_str(), "Error" | "Result");
-                if target != module && to >= own && !known {
+                if target != module && to >= own {
                     wrong.push(format!(
                         "{}:{}: `{module}` (floor {}) imports `crate::{name}` (floor {})",
                         rel.display(),

@@ -2,7 +2,7 @@
 
 use crate::stepper::{EcStepper, Predictor, SolverSettings};
 use crate::system::System;
-use crate::Result;
+use crate::error::Result;
 
 /// Steps from a grid point to a time between grid points: `n` steps of (distance / n) of
 /// ECrP of order 2r, the stages started from the grid state (constant predictor, as the

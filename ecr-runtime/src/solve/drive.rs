@@ -11,7 +11,7 @@ use super::Problem;
 use crate::integrate::StepPlan;
 use crate::storage::format_bytes;
 use crate::system::System;
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// The estimate a verified run aims at, in units of the tolerance.
 pub(super) const TARGET: f64 = 0.5;

@@ -1,6 +1,6 @@
 //! Events: the zeros of user functions e(t, y), located on the continuous solution.
 
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// Which sign changes of an event function count.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

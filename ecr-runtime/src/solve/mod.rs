@@ -72,7 +72,7 @@ pub use options::{Method, Options};
 pub use solution::{Segment, SolveError, Solution, Stats, Status, StepView};
 
 use crate::system::System;
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// An initial value problem y' = Ay + g(y), y(t₀) = y₀, on [t₀, t_end]. The system is held
 /// behind a reference count, so that the solutions share it rather than borrow the problem.

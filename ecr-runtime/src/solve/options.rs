@@ -4,7 +4,7 @@ use std::ops::RangeInclusive;
 
 use super::events::Event;
 use crate::stepper::SolverSettings;
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// How the solver picks the method and its step size.
 #[derive(Clone, Debug, PartialEq)]

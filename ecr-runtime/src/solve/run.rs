@@ -12,7 +12,7 @@ use super::dense::DenseStep;
 use super::options::Options;
 use crate::stepper::{EcStepper, SolverSettings, StepReport};
 use crate::system::System;
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// Which run a failed step belonged to.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -10,7 +10,7 @@ use super::dense::DenseStep;
 use super::events::EventHit;
 use crate::stepper::SolverSettings;
 use crate::system::System;
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// What the observer of [`Problem::solve_with`](super::Problem::solve_with) sees after each
 /// step.
