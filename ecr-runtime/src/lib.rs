@@ -157,8 +157,8 @@ pub mod prelude {
     pub use crate::operator::{Dense, DenseStatic, Diagonal, LinearOperator, Scalar, Symmetric};
     pub use crate::second_order::{Omega, SecondOrder, SecondOrderForm, SecondOrderSystem};
     pub use crate::solve::{
-        Direction, Event, EventHit, Method, Options, Problem, SolveError, Solution, Stats,
-        Status, StepView, linspace,
+        Direction, Event, EventHit, Method, Options, Problem, Solution, SolveError, Stats, Status,
+        StepView, linspace,
     };
     pub use crate::stepper::{EcStepper, SolverSettings};
     pub use crate::system::{GradientFlow, Hamiltonian, Semilinear, System};

@@ -1,8 +1,8 @@
 //! The solution between grid points: the run's method stepped from a grid point.
 
+use crate::error::Result;
 use crate::stepper::{EcStepper, Predictor, SolverSettings};
 use crate::system::System;
-use crate::error::Result;
 
 /// Steps from a grid point to a time between grid points: `n` steps of (distance / n) of
 /// ECrP of order 2r, the stages started from the grid state (constant predictor, as the

@@ -59,8 +59,12 @@
 
 mod dense;
 mod drive;
+mod estimate;
 mod events;
+mod grid;
+mod kept;
 mod options;
+mod pilot;
 mod run;
 mod solution;
 
@@ -69,10 +73,10 @@ use std::sync::Arc;
 
 pub use events::{Direction, Event, EventHit};
 pub use options::{Method, Options};
-pub use solution::{Segment, SolveError, Solution, Stats, Status, StepView};
+pub use solution::{Segment, Solution, SolveError, Stats, Status, StepView};
 
-use crate::system::System;
 use crate::error::{Error, Result};
+use crate::system::System;
 
 /// An initial value problem y' = Ay + g(y), y(t₀) = y₀, on [t₀, t_end]. The system is held
 /// behind a reference count, so that the solutions share it rather than borrow the problem.

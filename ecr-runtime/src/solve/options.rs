@@ -3,8 +3,8 @@
 use std::ops::RangeInclusive;
 
 use super::events::Event;
-use crate::stepper::SolverSettings;
 use crate::error::{Error, Result};
+use crate::stepper::SolverSettings;
 
 /// How the solver picks the method and its step size.
 #[derive(Clone, Debug, PartialEq)]

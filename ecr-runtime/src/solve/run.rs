@@ -9,10 +9,11 @@
 //! [`Runs::restore`] let it integrate the chunk again with another step size.
 
 use super::dense::DenseStep;
+use super::estimate::Maxima;
 use super::options::Options;
+use crate::error::{Error, Result};
 use crate::stepper::{EcStepper, SolverSettings, StepReport};
 use crate::system::System;
-use crate::error::{Error, Result};
 
 /// Which run a failed step belonged to.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -48,52 +49,6 @@ pub(super) struct Meet {
     pub(super) t: f64,
     pub(super) diff: f64,
     pub(super) noise: f64,
-}
-
-/// Running maxima over the points the grids of all three runs share (every 6h): the scaled
-/// differences answer–2h (`fine`) and 2h–3h (`coarse`), and the round-off model there.
-#[derive(Clone, Copy, Debug, Default)]
-pub(super) struct Maxima {
-    pub(super) fine: f64,
-    pub(super) coarse: f64,
-    pub(super) noise: f64,
-}
-
-impl Maxima {
-    /// The observed order q within [0, p]: with errors C h^q, the 2h–3h difference over the
-    /// h–2h difference is (3^q − 2^q) / (2^q − 1), increasing in q. `None` while the
-    /// differences are at round-off level.
-    pub(super) fn order(&self, p: f64) -> Option<f64> {
-        if self.coarse <= 4.0 * self.noise || self.coarse == 0.0 {
-            return None;
-        }
-        if self.fine == 0.0 {
-            return Some(p);
-        }
-        Some(order_of_ratio(self.coarse / self.fine, p))
-    }
-}
-
-/// The q in [0, p] with (3^q − 2^q) / (2^q − 1) = ratio (0 below the value at q → 0,
-/// log(3/2)/log 2; p above the value at p), by bisection.
-pub(super) fn order_of_ratio(ratio: f64, p: f64) -> f64 {
-    let f = |q: f64| (3f64.powf(q) - 2f64.powf(q)) / (2f64.powf(q) - 1.0);
-    if !(ratio > (1.5f64).ln() / 2f64.ln()) {
-        return 0.0;
-    }
-    if ratio >= f(p) {
-        return p;
-    }
-    let (mut lo, mut hi) = (1e-9, p);
-    for _ in 0..60 {
-        let mid = 0.5 * (lo + hi);
-        if f(mid) < ratio {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    0.5 * (lo + hi)
 }
 
 /// A terminal event that ended the chunk.
@@ -292,8 +247,13 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
         self.n = 0;
         let settings = self.options.settings;
         if self.steppers.is_empty() {
-            self.steppers
-                .push(EcStepper::with_nodes(self.system, self.r, self.r, grid.h, settings)?);
+            self.steppers.push(EcStepper::with_nodes(
+                self.system,
+                self.r,
+                self.r,
+                grid.h,
+                settings,
+            )?);
         } else {
             self.steppers[0].set_step_size(grid.h)?;
         }

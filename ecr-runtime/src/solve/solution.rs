@@ -8,9 +8,9 @@ use std::sync::Arc;
 
 use super::dense::DenseStep;
 use super::events::EventHit;
+use crate::error::{Error, Result};
 use crate::stepper::SolverSettings;
 use crate::system::System;
-use crate::error::{Error, Result};
 
 /// What the observer of [`Problem::solve_with`](super::Problem::solve_with) sees after each
 /// step.
@@ -346,10 +346,14 @@ impl<S: System> Solution<S> {
             .zip(out.iter())
             .map(|(c, f)| {
                 let diff = (c - f).abs() / dense.divisor;
-                if diff == 0.0 { 0.0 } else { diff / (atol + rtol * f.abs()) }
+                if diff == 0.0 {
+                    0.0
+                } else {
+                    diff / (atol + rtol * f.abs())
+                }
             })
             .fold(0.0, f64::max);
-        if !(e <= 1.0) {
+        if e.is_nan() || e > 1.0 {
             return Err(Error::Unverified(format!(
                 "the estimated error at t = {t:?} is {e:.3e} times the tolerance"
             )));
@@ -417,7 +421,11 @@ impl fmt::Display for SolveError {
                 write!(f, "{reason}")?;
                 if let Some(e) = solution.error_estimate {
                     write!(f, " (largest estimate {e:.3e} times the tolerance")?;
-                    write!(f, " over the {} outputs returned with this error)", solution.t.len())?;
+                    write!(
+                        f,
+                        " over the {} outputs returned with this error)",
+                        solution.t.len()
+                    )?;
                 }
                 Ok(())
             }

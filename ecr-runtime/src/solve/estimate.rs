@@ -1,0 +1,114 @@
+//! The estimate of the answer's error from the differences between the runs, the order they
+//! show, the round-off floor, and its projection to the end of the span.
+
+/// `x ≤ limit`, false for a NaN: the comparison whose failure means "not verified".
+pub(super) fn at_most(x: f64, limit: f64) -> bool {
+    x <= limit
+}
+
+/// The estimate a verified run aims at, in units of the tolerance.
+pub(super) const TARGET: f64 = 0.5;
+
+/// Running maxima over the points the grids of all three runs share (every 6h): the scaled
+/// differences answer–2h (`fine`) and 2h–3h (`coarse`), and the round-off model there.
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct Maxima {
+    pub(super) fine: f64,
+    pub(super) coarse: f64,
+    pub(super) noise: f64,
+}
+
+impl Maxima {
+    /// The observed order q within [0, p]: with errors C h^q, the 2h–3h difference over the
+    /// h–2h difference is (3^q − 2^q) / (2^q − 1), increasing in q. `None` while the
+    /// differences are at round-off level.
+    pub(super) fn order(&self, p: f64) -> Option<f64> {
+        if self.coarse <= 4.0 * self.noise || self.coarse == 0.0 {
+            return None;
+        }
+        if self.fine == 0.0 {
+            return Some(p);
+        }
+        Some(order_of_ratio(self.coarse / self.fine, p))
+    }
+}
+
+/// The q in [0, p] with (3^q − 2^q) / (2^q − 1) = ratio (0 below the value at q → 0,
+/// log(3/2)/log 2; p above the value at p), by bisection.
+pub(super) fn order_of_ratio(ratio: f64, p: f64) -> f64 {
+    let f = |q: f64| (3f64.powf(q) - 2f64.powf(q)) / (2f64.powf(q) - 1.0);
+    if at_most(ratio, (1.5f64).ln() / 2f64.ln()) || ratio.is_nan() {
+        return 0.0;
+    }
+    if ratio >= f(p) {
+        return p;
+    }
+    let (mut lo, mut hi) = (1e-9, p);
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        if f(mid) < ratio {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
+}
+
+/// The step-size law of a verified run: error ∝ h^q.
+pub(super) fn rescale(h: f64, ratio: f64, q: f64) -> f64 {
+    h * ratio.powf(1.0 / q.max(1.0))
+}
+
+/// The Richardson divisor 2^q − 1 for an observed order q, at least 1: where no order shows
+/// (the differences are at round-off level, or do not shrink with the step) the difference
+/// itself is the estimate.
+pub(super) fn divisor(order: Option<f64>) -> f64 {
+    order.map_or(1.0, |q| (2f64.powf(q) - 1.0).max(1.0))
+}
+
+/// The estimate of a point in tolerance units: the Richardson estimate, not below the
+/// round-off model.
+pub(super) fn estimate(diff: f64, noise: f64, div: f64) -> f64 {
+    let e = diff / div;
+    if e.is_nan() { e } else { e.max(noise) }
+}
+
+/// The round-off model at the end of the span: like the rounding of the steps, growing with
+/// the square root of the time.
+pub(super) fn project_noise(history: &[(f64, f64)], noise: f64, span: f64) -> f64 {
+    history
+        .last()
+        .map_or(noise, |&(t, _)| noise * (span / t).sqrt())
+}
+
+/// The value of `xs` at quantile `level` in [0, 1] (0 for none), reordering them.
+pub(super) fn quantile(xs: &mut [f64], level: f64) -> f64 {
+    if xs.is_empty() {
+        return 0.0;
+    }
+    if xs.iter().any(|x| x.is_nan()) {
+        return f64::NAN;
+    }
+    xs.sort_by(f64::total_cmp);
+    let k = ((xs.len() - 1) as f64 * level.clamp(0.0, 1.0)).round() as usize;
+    xs[k]
+}
+
+/// The largest estimate at the end of the span, from its growth so far: E(τ) ∝ τ^α, α from
+/// the last point and the one nearest half its time (within [0, 2]; ½ — between a bounded
+/// error and a linearly growing one — with too little history).
+pub(super) fn project(history: &[(f64, f64)], span: f64) -> f64 {
+    let Some(&(tk, ek)) = history.last() else {
+        return 0.0;
+    };
+    let alpha = history
+        .iter()
+        .rev()
+        .find(|(t, _)| *t <= 0.5 * tk)
+        .filter(|(_, e)| *e > 0.0)
+        .map_or(0.5, |&(t, e)| {
+            ((ek / e).ln() / (tk / t).ln()).clamp(0.0, 2.0)
+        });
+    ek * (span / tk).powf(alpha)
+}
