@@ -5,9 +5,11 @@ use std::ops::ControlFlow;
 
 use ecr::problems::{Duffing, Nls, Wind};
 use ecr::runtime::integrate::{IntegrateOptions, integrate};
+use ecr::runtime::nalgebra::DMatrix;
+use ecr::runtime::operator::Dense;
 use ecr::runtime::solve::{Direction, Event, Options, Problem, SolveError, Status};
 use ecr::runtime::stepper::EcStepper;
-use ecr::runtime::system::System;
+use ecr::runtime::system::{Semilinear, System};
 
 /// max_i |a_i − b_i| / (tol + tol |b_i|): the error in units of the tolerance.
 fn scaled_error(a: &[f64], b: &[f64], tol: f64) -> f64 {
@@ -36,7 +38,9 @@ fn sweep<S: System>(name: &str, system: S, y0: Vec<f64>, t_end: f64, exact: &[f6
         let tol = 10f64.powi(-k);
         let sol = match problem.solve(&Options::tolerance(tol).t_eval([t_end])) {
             Ok(sol) => sol,
-            Err(SolveError::Unverified { reason, .. }) if k == 12 && reason.contains("round-off") => {
+            Err(SolveError::Unverified { reason, .. })
+                if k == 12 && reason.contains("round-off") =>
+            {
                 eprintln!("{name}: tol 1e-{k}: not verified: {reason}");
                 continue;
             }
@@ -272,4 +276,159 @@ fn energy_is_bounded_over_a_million_chosen_steps() {
     );
     assert!(sol.stats.steps >= 1_000_000);
     assert!(sol.energy_error().unwrap() < 1e-12);
+}
+
+/// A clock τ (τ' = 1) drives an oscillator u'' = −(1 + 400 e^{−((τ − 8)/0.4)²}) u whose
+/// frequency rises twentyfold around t = 8: smooth, but the error is made late in the span.
+fn late_burst() -> (
+    Semilinear<Dense, impl Fn(&[f64], &mut [f64]) + Clone>,
+    Vec<f64>,
+) {
+    let a = DMatrix::from_row_slice(3, 3, &[0.0, 1.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+    let g = |y: &[f64], out: &mut [f64]| {
+        let bump = 400.0 * (-((y[2] - 8.0) / 0.4).powi(2)).exp();
+        out[0] = 0.0;
+        out[1] = -bump * y[0];
+        out[2] = 1.0;
+    };
+    (
+        Semilinear::new(Dense::new(a).unwrap(), g),
+        vec![1.0, 0.0, 0.0],
+    )
+}
+
+/// Pilots (or what replaces them) cost less than the run they choose, on the paper's
+/// problems over the tolerances the sweep uses.
+#[test]
+fn pilots_cost_less_than_the_run() {
+    let d = Duffing::new(20.0, 0.07).unwrap();
+    let duffing = Problem::new(d.system().unwrap(), d.initial_value(), (0.0, 1000.0)).unwrap();
+    let n = Nls::new(128).unwrap();
+    let nls = Problem::new(n.system().unwrap(), n.initial_value(), (0.0, 10.0)).unwrap();
+    for k in [4, 6, 8, 10] {
+        let tol = 10f64.powi(-k);
+        let options = Options::tolerance(tol).t_eval([1000.0]);
+        let sol = duffing.solve(&options).unwrap();
+        eprintln!(
+            "duffing 1e-{k}: pilot {} g, run {} g",
+            sol.stats.pilot_g_evals, sol.stats.g_evals
+        );
+        assert!(
+            sol.stats.pilot_g_evals <= sol.stats.g_evals,
+            "duffing 1e-{k}"
+        );
+        let sol = nls.solve(&Options::tolerance(tol).t_eval([10.0])).unwrap();
+        eprintln!(
+            "nls 1e-{k}: pilot {} g, run {} g",
+            sol.stats.pilot_g_evals, sol.stats.g_evals
+        );
+        assert!(sol.stats.pilot_g_evals <= sol.stats.g_evals, "nls 1e-{k}");
+    }
+}
+
+/// A terminal event at t = 2.25 in a span of 10⁴ ends the work: everything the solve
+/// evaluates (pilots, checks, discarded tries) stays within a small multiple of what a
+/// verified run to t = 2.25 alone costs.
+#[test]
+fn an_early_terminal_event_ends_the_work_too() {
+    let d = Duffing::default();
+    let half_period = 2.0 * ecr::special::elliptic_k(d.elliptic_parameter()).unwrap() / d.omega();
+    let stop = 2.25;
+    let event = move |t: f64, _: &[f64]| t - stop;
+    let long = Problem::new(d.system().unwrap(), d.initial_value(), (0.0, 1e4)).unwrap();
+    let sol = long
+        .solve(&Options::tolerance(1e-8).event(Event::new(event).terminal()))
+        .unwrap();
+    assert!(
+        matches!(sol.status, Status::Terminated { t, .. } if (t - stop).abs() < 1e-12),
+        "{:?}",
+        sol.status
+    );
+    let short = Problem::new(d.system().unwrap(), d.initial_value(), (0.0, stop)).unwrap();
+    let alone = short.solve(&Options::tolerance(1e-8)).unwrap();
+    let (with_event, without) = (sol.stats.total_g_evals(), alone.stats.total_g_evals());
+    eprintln!(
+        "span 1e4 with a terminal event at {stop}: {with_event} g-evaluations; the span \
+         [0, {stop}] alone: {without} (half period {half_period:.4})"
+    );
+    assert!(with_event <= 10 * without, "{with_event} vs {without}");
+}
+
+/// An answer whose error is made late (after the pilots and the first chunks) is integrated
+/// again with a smaller step: the retry is verified and counted, and the observer sees every
+/// step of the returned run once, in time order (never a discarded one).
+#[test]
+fn retries_are_verified_counted_and_never_shown_twice() {
+    let (system, y0) = late_burst();
+    let problem = Problem::new(system, y0.clone(), (0.0, 10.0)).unwrap();
+    let tol = 1e-8;
+    let mut seen: Vec<(f64, usize)> = Vec::new();
+    let sol = problem
+        .solve_with(&Options::tolerance(tol), |step| {
+            seen.push((step.t, step.step));
+            ControlFlow::Continue(())
+        })
+        .unwrap();
+    assert!(
+        seen.windows(2)
+            .all(|w| w[1].0 > w[0].0 && w[1].1 == w[0].1 + 1),
+        "the observer saw time go backwards or a step twice"
+    );
+    assert_eq!(
+        seen.len(),
+        sol.stats.steps,
+        "one call per step of the returned run"
+    );
+    // The answer is verified: against a fine fixed run.
+    let reference = problem.solve(&Options::fixed(6, 1e-3)).unwrap();
+    let error = scaled_error(sol.last().unwrap(), reference.last().unwrap(), tol);
+    eprintln!(
+        "late burst, tol {tol:e}: retries {}, discarded {} g, error/tol {error:.3}, estimate \
+         {:?}",
+        sol.stats.retries, sol.stats.discarded_g_evals, sol.error_estimate
+    );
+    assert!(sol.stats.retries >= 1 && sol.stats.discarded_g_evals > 0);
+    assert!(error <= 10.0, "error / tol = {error}");
+    assert!(sol.error_estimates.iter().all(|&e| e <= 1.0));
+    // Without an observer, the same: a verified answer, the retries counted.
+    let plain = problem.solve(&Options::tolerance(tol)).unwrap();
+    let error = scaled_error(plain.last().unwrap(), reference.last().unwrap(), tol);
+    assert!(plain.stats.retries >= 1 && error <= 10.0, "{error}");
+}
+
+/// A relative tolerance alone (atol = 0) with a component that starts at 0: the relative
+/// error there is 0/0 at t₀ only; y₂ = 1 − e^{−t} grows from 0.
+#[test]
+fn a_relative_tolerance_works_with_zero_components() {
+    let a = DMatrix::from_row_slice(2, 2, &[-1.0, 0.0, 1.0, 0.0]);
+    let g = |_: &[f64], out: &mut [f64]| out.fill(0.0);
+    let system = Semilinear::new(Dense::new(a).unwrap(), g);
+    let problem = Problem::new(system, [1.0, 0.0], (0.0, 5.0)).unwrap();
+    let sol = problem
+        .solve(&Options::tolerance(1e-8).atol(0.0).t_eval([1.0, 5.0]))
+        .unwrap();
+    let exact = [(-5.0f64).exp(), 1.0 - (-5.0f64).exp()];
+    let y = sol.last().unwrap();
+    for (v, e) in y.iter().zip(exact) {
+        assert!((v - e).abs() <= 1e-8 * e.abs(), "{v} vs {e}");
+    }
+}
+
+/// A tolerance below what f64 reaches for the problem is refused, with the reachable floor
+/// in the message.
+#[test]
+fn a_tolerance_below_the_f64_floor_is_refused() {
+    let d = Duffing::default();
+    let problem = Problem::new(d.system().unwrap(), d.initial_value(), (0.0, 10.0)).unwrap();
+    for tol in [1e-17, 1e-20, 1e-50] {
+        let message = problem
+            .solve(&Options::tolerance(tol))
+            .map(|sol| format!("Ok with estimate {:?}", sol.stats))
+            .expect_err("a tolerance below the f64 floor");
+        let message = message.to_string();
+        assert!(
+            message.contains("below what f64 can verify") && message.contains("e"),
+            "tol {tol:e}: {message}"
+        );
+    }
 }

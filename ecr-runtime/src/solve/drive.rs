@@ -246,7 +246,7 @@ impl<S: System> Problem<S> {
                 // The chunk's verdict: kept, or again with a smaller step (and why).
                 let again: (f64, String) = match runs.advance(n_stop, collect) {
                     Err((f, cost)) => {
-                        add_cost(&mut kept.cost, &cost);
+                        discard(&mut stats, &cost);
                         let which = match f.which {
                             Which::Fine => "returned",
                             Which::Coarse => "2h checking",
@@ -320,7 +320,7 @@ impl<S: System> Problem<S> {
                             project_noise(&history, noise, span)
                         };
                         if (over || projected > 1.0) && floor >= 0.5 * projected.max(worst_out) {
-                            add_cost(&mut kept.cost, &chunk.cost);
+                            discard(&mut stats, &chunk.cost);
                             let steps = runs.total;
                             runs.restore(&ck)?;
                             let why = format!(
@@ -335,7 +335,7 @@ impl<S: System> Problem<S> {
                         }
                         if over || (projected > 1.0 && !shown) {
                             history.pop();
-                            add_cost(&mut kept.cost, &chunk.cost);
+                            discard(&mut stats, &chunk.cost);
                             h_fail = h_fail.min(h);
                             let worst = if over { worst_out.max(stat) } else { projected };
                             let law = if worst.is_finite() {
@@ -493,7 +493,7 @@ impl<S: System> Problem<S> {
                     }
                 }
                 Err((f, cost)) => {
-                    add_cost(&mut kept.cost, &cost);
+                    discard(&mut stats, &cost);
                     kept.status = Some(Status::Failed { t: f.t });
                 }
             }
