@@ -6,7 +6,7 @@ use super::estimate::{
     TARGET, at_most, divisor, estimate, project, project_noise, quantile, rescale,
 };
 use super::grid::{fit_grid, quantum};
-use super::kept::{Kept, Observer, add_cost, discard, finish};
+use super::kept::{Kept, Observer, discard, finish};
 use super::options::{Method, Options};
 use super::pilot::Pilot;
 use super::run::{Checkpoint, Chunk, Collect, Grid, MEET, Point, Runs, Which};
@@ -96,7 +96,16 @@ impl<S: System> Problem<S> {
             end: self.t_end,
         };
         let system = &*self.system;
-        let mut runs = Runs::new(system, options, r, false, &self.y0, grid, self.same_time())?;
+        let mut runs = Runs::new(
+            system,
+            options,
+            r,
+            false,
+            &self.y0,
+            grid,
+            self.same_time(),
+            1.0,
+        )?;
         let collect = Collect {
             every_step: options.t_eval.is_none(),
             steps: observer.is_some(),
@@ -149,7 +158,7 @@ impl<S: System> Problem<S> {
             end: self.t_end,
         };
         let r0 = self.first_order(options);
-        let mut runs = Runs::new(system, options, r0, true, &self.y0, start, same)?;
+        let mut runs = Runs::new(system, options, r0, true, &self.y0, start, same, 1.0)?;
         let floor = runs.noise_at_start();
         if !at_most(floor, 0.25) {
             return Err(Error::InvalidInput(format!(
@@ -210,6 +219,8 @@ impl<S: System> Problem<S> {
         };
         let trace = std::env::var_os("ECR_SOLVE_TRACE").is_some();
         let mut h_want = pilot.h;
+        // The order the differences show: the pilot's, then the last run's.
+        let mut order_hint = pilot.order;
         let mut restarts = 0;
         let mut ups = 0;
         // The smallest step that was over the tolerance (or projected to be): a larger step is
@@ -223,7 +234,16 @@ impl<S: System> Problem<S> {
                     grid.h, grid.n_end
                 );
             }
-            let mut runs = Runs::new(system, options, r, true, &self.y0, grid, self.same_time())?;
+            let mut runs = Runs::new(
+                system,
+                options,
+                r,
+                true,
+                &self.y0,
+                grid,
+                self.same_time(),
+                order_hint,
+            )?;
             let mut kept = Kept::new(self.t0, grid.h);
             let mut first = Chunk::default();
             runs.start(collect, &mut first)?;
@@ -339,7 +359,7 @@ impl<S: System> Problem<S> {
                             h_fail = h_fail.min(h);
                             let worst = if over { worst_out.max(stat) } else { projected };
                             let law = if worst.is_finite() {
-                                rescale(h, 0.9 * TARGET / worst, q)
+                                rescale(h, 0.7 * TARGET / worst, q)
                             } else {
                                 h / 4.0
                             };
@@ -370,18 +390,21 @@ impl<S: System> Problem<S> {
                             if kept.ended() || at_end {
                                 break;
                             }
+                            // At most twice the step, and below the smallest that was too
+                            // large (halfway there, on a log scale).
+                            let up = (2.0 * h).min((h * h_fail).sqrt());
                             if projected < TARGET / 20.0
                                 && order.is_some()
                                 && !shown
                                 && ups < 1
                                 && t - self.t0 <= UP_SHARE * span
-                                && 2.0 * h < h_fail
+                                && up > 1.1 * h
                             {
                                 // Far more accurate than asked: again with a larger step, below
                                 // the smallest that was too large.
                                 ups += 1;
                                 let grow = TARGET / projected.max(f64::MIN_POSITIVE);
-                                let up = rescale(h, grow, q).min(2.0 * h);
+                                let up = rescale(h, grow, q).min(up);
                                 if trace {
                                     eprintln!(
                                         "solve:   again with h = {up:.4e}: far below the tolerance"
@@ -449,6 +472,9 @@ impl<S: System> Problem<S> {
             if let Some(h_new) = restart_with {
                 discard(&mut stats, &kept.cost);
                 h_want = h_new;
+                if let Some(q) = runs.maxima.order(p) {
+                    order_hint = q;
+                }
                 continue;
             }
             // Verified.

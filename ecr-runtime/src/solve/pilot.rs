@@ -24,6 +24,8 @@ pub(super) struct Pilot {
     pub(super) h: f64,
     /// Predicted evaluations of g of the run.
     pub(super) cost: f64,
+    /// The order the differences showed (r, half the nominal, where they were at round-off).
+    pub(super) order: f64,
 }
 
 impl<S: System> Problem<S> {
@@ -96,13 +98,25 @@ impl<S: System> Problem<S> {
         };
         let (mut grown, mut refined) = (0, false);
         let mut last_failure: Option<StepFailure> = None;
+        // The largest step any level's estimate allows: a finer level over a shorter window
+        // does not see what a coarser one over a longer window saw.
+        let mut h_cap = f64::INFINITY;
         for _ in 0..60 {
             let window = (blocks * h).min(span);
             let grid = fit_grid(h, self.t0, self.t0 + window, None, usize::MAX)?;
             if h < span * 1e-12 {
                 break;
             }
-            let mut runs = Runs::new(system, options, r, true, &self.y0, grid, self.same_time())?;
+            let mut runs = Runs::new(
+                system,
+                options,
+                r,
+                true,
+                &self.y0,
+                grid,
+                self.same_time(),
+                1.0,
+            )?;
             let chunk = match runs.advance(grid.n_end, collect) {
                 Ok(c) => c,
                 Err((f, cost)) => {
@@ -146,20 +160,15 @@ impl<S: System> Problem<S> {
                     grown += 1;
                     continue;
                 }
-                let h_run = (4.0 * grid.h).min(span_eff / 4.0);
+                let h_run = (4.0 * grid.h).min(span_eff / 4.0).min(h_cap);
                 return Ok(Pilot {
                     r,
                     h: h_run,
                     cost: g_per_step * span_eff / h_run,
+                    order: order.unwrap_or(0.5 * p),
                 });
             }
             let q = order.unwrap_or(p);
-            if q < 0.5 * p {
-                // Not yet in the asymptotic regime.
-                refined = true;
-                h /= 2.0;
-                continue;
-            }
             // Growth over the window, as a power of time: from a plateau (a damped problem)
             // to linear (the phase error of a conservative one); the run checks the rest.
             let alpha = if e_half > 0.0 {
@@ -169,9 +178,15 @@ impl<S: System> Problem<S> {
             };
             let predicted = e_w * (span_eff / (end - self.t0)).powf(alpha);
             // The law is trusted up to twice the step at which it was seen.
-            let h_run = rescale(grid.h, TARGET / predicted, q)
-                .min(2.0 * grid.h)
-                .min(span_eff / 4.0);
+            let law = rescale(grid.h, TARGET / predicted, q.max(0.5 * p));
+            h_cap = h_cap.min(law);
+            if q < 0.5 * p {
+                // Not yet in the asymptotic regime.
+                refined = true;
+                h /= 2.0;
+                continue;
+            }
+            let h_run = law.min(2.0 * grid.h).min(span_eff / 4.0).min(h_cap);
             if trace {
                 eprintln!(
                     "solve: pilot EC{r}P: alpha {alpha:.2}, predicted {predicted:.3e}, h_run {h_run:.4e}, g/step {g_per_step:.2}"
@@ -181,6 +196,7 @@ impl<S: System> Problem<S> {
                 r,
                 h: h_run,
                 cost: g_per_step * span_eff / h_run,
+                order: q,
             });
         }
         Err(match last_failure {

@@ -9,7 +9,7 @@
 //! [`Runs::restore`] let it integrate the chunk again with another step size.
 
 use super::dense::DenseStep;
-use super::estimate::Maxima;
+use super::estimate::{Maxima, TARGET};
 use super::options::Options;
 use crate::error::{Error, Result};
 use crate::stepper::{EcStepper, SolverSettings, StepReport};
@@ -188,6 +188,9 @@ pub(super) struct Runs<'a, 'o, S: System> {
     /// The answer's state before its last step (for the rate of change in the round-off
     /// model).
     before: Vec<f64>,
+    /// The order the differences are expected to show (for the checking runs' stage
+    /// tolerances).
+    order_hint: f64,
 }
 
 /// The round-off model: per step, each component is rounded relative to the whole state
@@ -207,6 +210,7 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
         y0: &[f64],
         grid: Grid,
         same_time: f64,
+        order_hint: f64,
     ) -> Result<Self> {
         let ev_prev = options
             .events
@@ -232,6 +236,7 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
             same_time,
             fine_tolerance: options.settings.tolerance,
             before: y0.to_vec(),
+            order_hint,
         };
         if let Some(ts) = &options.t_eval {
             runs.t_eval_next = ts.partition_point(|&t| t < grid.a - same_time);
@@ -278,20 +283,27 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
     }
 
     /// Stage tolerances of the checking runs: their iteration error, added up over their
-    /// steps, stays below 1 % of the tolerance, in the stepper's scale (relative to
-    /// max(1, ‖Y‖∞)); never looser than 1e−8, never tighter than the answer's.
+    /// steps, stays below 1 % of the difference each is to show when the answer's error is
+    /// [`TARGET`] times the tolerance and the order is `order_hint` (2^q − 1 resp. 3^q − 2^q
+    /// times it), in the stepper's scale (relative to max(1, ‖Y‖∞)); never looser than 1e−6,
+    /// never tighter than the answer's.
     fn check_tolerances(&self) -> (f64, f64) {
         let y = &self.y[0];
         let big = y.iter().fold(1.0_f64, |m, v| m.max(v.abs()));
         let w = y
             .iter()
             .map(|v| self.options.atol + self.options.rtol * v.abs())
+            .filter(|w| *w > 0.0)
             .fold(f64::INFINITY, f64::min)
             / big;
-        let steps = (self.grid.n_end.max(1) as f64) / 2.0;
+        let w = if w.is_finite() { w } else { 0.0 };
+        let q = self.order_hint.max(1.0);
+        let steps = self.grid.n_end.max(2) as f64;
+        let base = 0.01 * TARGET * w;
         let lo = self.fine_tolerance;
-        let tc = (0.01 * w / steps).clamp(lo, 1e-8_f64.max(lo));
-        let tq = (0.01 * w / (steps / 1.5)).clamp(lo, 1e-8_f64.max(lo));
+        let hi = 1e-6_f64.max(lo);
+        let tc = (base * (2f64.powf(q) - 1.0) / (steps / 2.0)).clamp(lo, hi);
+        let tq = (base * (3f64.powf(q) - 2f64.powf(q)) / (steps / 3.0)).clamp(lo, hi);
         (tc, tq)
     }
 
