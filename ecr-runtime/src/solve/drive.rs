@@ -6,7 +6,7 @@ use super::estimate::{
     TARGET, at_most, divisor, estimate, project, project_noise, quantile, rescale,
 };
 use super::grid::{fit_grid, quantum};
-use super::kept::{Kept, Observer, discard, finish};
+use super::kept::{Kept, Observer, discard, ensure_output_fits, finish};
 use super::options::{Method, Options};
 use super::pilot::Pilot;
 use super::run::{Checkpoint, Chunk, Collect, Grid, MEET, Point, Runs, Which};
@@ -22,6 +22,9 @@ const LAST_CHUNK_SHARE: f64 = 1.0 / 8.0;
 
 /// Runs started again from t₀ before the solve gives up.
 const MAX_RESTARTS: usize = 8;
+
+/// Failures of a step at the same place (with ever smaller steps) before the solve gives up.
+const STUCK_LIMIT: usize = 3;
 
 /// With an observer: chunks integrated again (from their start) before the solve gives up.
 const MAX_RETRIES: usize = 10;
@@ -223,11 +226,22 @@ impl<S: System> Problem<S> {
         let mut order_hint = pilot.order;
         let mut restarts = 0;
         let mut ups = 0;
+        // Where the last step failure was, and how often in a row a step failed there.
+        let (mut failed_at, mut stuck): (Option<f64>, usize) = (None, 0);
         // The smallest step that was over the tolerance (or projected to be): a larger step is
         // never tried again.
         let mut h_fail = f64::INFINITY;
         loop {
             let grid = fit_grid(h_want, self.t0, self.t_end, quantum, options.max_steps)?;
+            let meets = grid.n_end / 2 + 1;
+            let outputs = options.t_eval.as_ref().map_or(meets, Vec::len);
+            let dense = if options.dense { meets } else { 0 };
+            let held = if observer.is_some() {
+                (grid.n_end as f64 * LAST_CHUNK_SHARE.max(SHOW_SHARE)) as usize + 1
+            } else {
+                0
+            };
+            ensure_output_fits(self.y0.len(), outputs, dense, held)?;
             if trace {
                 eprintln!(
                     "solve: EC{r}P from t0 with h = {:.4e} ({} steps)",
@@ -265,8 +279,17 @@ impl<S: System> Problem<S> {
                 let h = runs.grid.h;
                 // The chunk's verdict: kept, or again with a smaller step (and why).
                 let again: (f64, String) = match runs.advance(n_stop, collect) {
+                    Err((f, _)) if f.fatal => return Err(f.error.into()),
                     Err((f, cost)) => {
                         discard(&mut stats, &cost);
+                        // A step that fails at the same place whatever the step size (a
+                        // singularity, g not finite there): smaller steps will not help.
+                        let here = 6.0 * h;
+                        stuck = match failed_at {
+                            Some(t) if (f.t - t).abs() <= here => stuck + 1,
+                            _ => 1,
+                        };
+                        failed_at = Some(f.t);
                         let which = match f.which {
                             Which::Fine => "returned",
                             Which::Coarse => "2h checking",
@@ -276,6 +299,16 @@ impl<S: System> Problem<S> {
                             "a step of the {which} run failed at t = {:?} (h = {:.3e}): {}",
                             f.t, f.h, f.error
                         );
+                        if stuck >= STUCK_LIMIT {
+                            runs.restore(&ck)?;
+                            let why = format!(
+                                "{why}; the step failed there {stuck} times, each time with a \
+                                 smaller step"
+                            );
+                            return Err(
+                                self.best_effort(options, runs, kept, stats, r, why, observer)
+                            );
+                        }
                         (h / 2.0, why)
                     }
                     Ok(chunk) => {
@@ -518,6 +551,7 @@ impl<S: System> Problem<S> {
                         kept.status = Some(Status::Failed { t: runs.t() });
                     }
                 }
+                Err((f, _)) if f.fatal => return SolveError::Failed(f.error),
                 Err((f, cost)) => {
                     discard(&mut stats, &cost);
                     kept.status = Some(Status::Failed { t: f.t });

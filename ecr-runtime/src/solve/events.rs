@@ -73,12 +73,12 @@ impl Event {
     /// The time of the zero between (t_a, e_a) and (t_b, e_b), by the Illinois variant of
     /// regula falsi, `eval(t)` giving e at t, to a few ulps of t: the end of the bracket on the
     /// far side, the first time the sign changed.
-    pub(super) fn locate(
+    pub(super) fn locate<E>(
         &self,
         (ta, ea): (f64, f64),
         (tb, eb): (f64, f64),
-        mut eval: impl FnMut(f64) -> Result<f64>,
-    ) -> Result<f64> {
+        mut eval: impl FnMut(f64) -> std::result::Result<f64, E>,
+    ) -> std::result::Result<f64, E> {
         if eb == 0.0 {
             return Ok(tb);
         }

@@ -132,6 +132,40 @@ fn reserve<T>(v: &mut Vec<T>, n: usize, d: usize) -> Result<()> {
     })
 }
 
+/// `Err` naming the size if the output of a run cannot be stored: `outputs` output states,
+/// `grid` grid points kept for dense output (two states each), `observed` states held for the
+/// observer at once, of `d` numbers each (and what each entry costs besides: its vectors'
+/// headers and the allocator's, its time, energy and estimate). Checked before the run, so
+/// that it fails with this error rather than aborting on an allocation midway.
+pub(super) fn ensure_output_fits(
+    d: usize,
+    outputs: usize,
+    grid: usize,
+    observed: usize,
+) -> Result<()> {
+    let per_state = d.saturating_add(9);
+    let entries = outputs
+        .saturating_add(grid.saturating_mul(2))
+        .saturating_add(observed)
+        .checked_mul(per_state);
+    crate::storage::ensure_allocatable(
+        &format!(
+            "the solution's output ({outputs} states of {d} numbers{}{})",
+            if grid > 0 {
+                format!(", {grid} grid points for dense output")
+            } else {
+                String::new()
+            },
+            if observed > 0 {
+                format!(", {observed} steps held for the observer")
+            } else {
+                String::new()
+            }
+        ),
+        entries,
+    )
+}
+
 /// The observer of a solve, if any.
 pub(super) type Observer<'f> = Option<&'f mut dyn FnMut(&StepView<'_>) -> ControlFlow<()>>;
 

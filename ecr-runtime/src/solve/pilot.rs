@@ -119,6 +119,7 @@ impl<S: System> Problem<S> {
             )?;
             let chunk = match runs.advance(grid.n_end, collect) {
                 Ok(c) => c,
+                Err((f, _)) if f.fatal => return Err(f.error),
                 Err((f, cost)) => {
                     stats.pilot_steps += cost.total_steps();
                     stats.pilot_g_evals += cost.total_g_evals();

@@ -30,6 +30,9 @@ pub(super) struct StepFailure {
     pub(super) t: f64,
     pub(super) h: f64,
     pub(super) error: Error,
+    /// Not a failure of the step but of the user's input (an event function that returned
+    /// NaN): no smaller step helps.
+    pub(super) fatal: bool,
 }
 
 /// A value the solve returns at a time (an output or an event), with what its estimate needs.
@@ -406,6 +409,7 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
             t,
             h,
             error,
+            fatal: false,
         })
     }
 
@@ -513,7 +517,7 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
         match self.advance_into(n_stop, collect, &mut chunk) {
             Ok(()) => Ok(chunk),
             Err(AdvanceError::Step(f)) => Err((f, chunk.cost)),
-            Err(AdvanceError::Other(e)) => {
+            Err(AdvanceError::Other(e, fatal)) => {
                 let t = self.t();
                 Err((
                     StepFailure {
@@ -521,6 +525,7 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
                         t,
                         h: self.grid.h,
                         error: e,
+                        fatal,
                     },
                     chunk.cost,
                 ))
@@ -559,12 +564,15 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
                 if !collect.events && !e.terminal {
                     continue;
                 }
-                let now = e.value(k, t, &self.y[0])?;
+                let now = e
+                    .value(k, t, &self.y[0])
+                    .map_err(|e| AdvanceError::Other(e, true))?;
                 let before = self.ev_prev[k];
                 if e.counts(before, now) {
                     let te = e.locate((t_prev, before), (t, now), |tt| {
                         self.dense_fine(tt, &mut scratch, &mut chunk.cost)?;
                         e.value(k, tt, &scratch)
+                            .map_err(|e| AdvanceError::Other(e, true))
                     })?;
                     if e.terminal && stop.is_none_or(|s| te < s.t) {
                         stop = Some(Terminal { event: k, t: te });
@@ -661,7 +669,9 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
 
 enum AdvanceError {
     Step(StepFailure),
-    Other(Error),
+    /// An error on the way (a step between grid points), or with `true` one that no step
+    /// size can mend (an event function's NaN).
+    Other(Error, bool),
 }
 
 impl From<StepFailure> for AdvanceError {
@@ -672,6 +682,6 @@ impl From<StepFailure> for AdvanceError {
 
 impl From<Error> for AdvanceError {
     fn from(e: Error) -> Self {
-        AdvanceError::Other(e)
+        AdvanceError::Other(e, false)
     }
 }
