@@ -24,7 +24,7 @@ const LAST_CHUNK_SHARE: f64 = 1.0 / 8.0;
 const MAX_RESTARTS: usize = 8;
 
 /// Failures of a step at the same place (with ever smaller steps) before the solve gives up.
-const STUCK_LIMIT: usize = 3;
+const STUCK_LIMIT: usize = 5;
 
 /// With an observer: chunks integrated again (from their start) before the solve gives up.
 const MAX_RETRIES: usize = 10;

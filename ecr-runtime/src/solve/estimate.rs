@@ -16,6 +16,8 @@ pub(super) struct Maxima {
     pub(super) fine: f64,
     pub(super) coarse: f64,
     pub(super) noise: f64,
+    /// The two differences at the last meeting point.
+    pub(super) last: (f64, f64),
 }
 
 impl Maxima {
@@ -29,7 +31,15 @@ impl Maxima {
         if self.fine == 0.0 {
             return Some(p);
         }
-        Some(order_of_ratio(self.coarse / self.fine, p))
+        let q = order_of_ratio(self.coarse / self.fine, p);
+        // Where the differences are now near their largest, the order they show there too:
+        // once amplified round-off dominates them (chaotic motion at a tight tolerance) they
+        // no longer shrink with the step there, though they did where they were largest before.
+        let (fine, coarse) = self.last;
+        if fine >= 0.25 * self.fine && coarse > 4.0 * self.noise {
+            return Some(q.min(order_of_ratio(coarse / fine, p)));
+        }
+        Some(q)
     }
 }
 

@@ -3,7 +3,7 @@
 
 use super::Problem;
 use super::estimate::{TARGET, divisor, estimate, rescale};
-use super::grid::fit_grid;
+use super::grid::{fit_grid, quantum};
 use super::options::Options;
 use super::run::{Collect, MEET, Runs, StepFailure};
 use super::solution::Stats;
@@ -69,6 +69,14 @@ impl<S: System> Problem<S> {
             }
         }
         Ok(best)
+    }
+
+    /// The step the run will take for a step `h` allows: with evenly spaced output times
+    /// every one is a meeting point of the runs, so at most a sixth of their spacing (where
+    /// that binds, a lower order costs less for the same step).
+    fn grid_step(&self, options: &Options, h: f64) -> f64 {
+        let q = quantum(options.t_eval.as_deref(), self.t0, self.t_end);
+        fit_grid(h, self.t0, self.t_end, q, usize::MAX).map_or(h, |g| g.h)
     }
 
     /// The pilot of one order: the three runs over a window of [`PILOT_BLOCKS`] blocks of
@@ -165,7 +173,7 @@ impl<S: System> Problem<S> {
                 return Ok(Pilot {
                     r,
                     h: h_run,
-                    cost: g_per_step * span_eff / h_run,
+                    cost: g_per_step * span_eff / self.grid_step(options, h_run),
                     order: order.unwrap_or(0.5 * p),
                 });
             }
@@ -196,7 +204,7 @@ impl<S: System> Problem<S> {
             return Ok(Pilot {
                 r,
                 h: h_run,
-                cost: g_per_step * span_eff / h_run,
+                cost: g_per_step * span_eff / self.grid_step(options, h_run),
                 order: q,
             });
         }

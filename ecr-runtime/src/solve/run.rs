@@ -636,6 +636,7 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
                     );
                     let m = &mut self.maxima;
                     m.fine = m.fine.max(diff);
+                    m.last = (diff, c3);
                     m.coarse = m.coarse.max(c3);
                     m.noise = m.noise.max(noise);
                 }
