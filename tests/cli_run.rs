@@ -225,6 +225,46 @@ fn wind_problems_run() {
     }
 }
 
+/// Issue 28: the command of the issue failed at step 2 with "diverging stage iteration" (the
+/// iteration from the extrapolated guess diverged where the one from y₀ converges). A step
+/// whose guess fails is restarted from y₀: the run succeeds and ends where the run with
+/// `--constant-start` does, up to the stage solver's tolerance carried over 10 steps.
+#[test]
+fn wind_r12_h05_from_the_issue_runs() {
+    let cmd = [
+        "--problem",
+        "wind",
+        "--method",
+        "ec",
+        "--r",
+        "12",
+        "--h",
+        "0.5",
+    ];
+    let v = run_ok(&[&cmd[..], &["--t-end", "5"]].concat());
+    let c = run_ok(&[&cmd[..], &["--t-end", "5", "--constant-start"]].concat());
+    assert_eq!(v["steps"], 10);
+    assert_eq!(v["t_end"].as_f64(), Some(5.0));
+    assert_eq!(v["unconverged_steps"], 0);
+    let (y, yc) = (v["y"].as_array().unwrap(), c["y"].as_array().unwrap());
+    let scale = yc
+        .iter()
+        .fold(1.0f64, |m, x| m.max(x.as_f64().unwrap().abs()));
+    for (a, b) in y.iter().zip(yc) {
+        let (a, b) = (a.as_f64().unwrap(), b.as_f64().unwrap());
+        // Both iterate each step to the same fixed point to 1e−15 (scaled): 1e−12 leaves
+        // room for that carried over 10 steps of a mildly unstable rotation.
+        assert!(
+            (a - b).abs() <= 1e-12 * scale,
+            "y {a} vs {b} (--constant-start)"
+        );
+    }
+    println!(
+        "g evaluations: default {}, --constant-start {}",
+        v["g_evals"], c["g_evals"]
+    );
+}
+
 #[test]
 fn nls_runs_with_small_energy_error() {
     let v = run_ok(&[
