@@ -657,10 +657,12 @@ fn nls_on_the_concurrent_path_never_aborts_under_an_address_space_limit() {
 }
 
 /// Issue 27, the method's floor for any h: on Duffing ω = 20 over T = 1000, N steps of fl(h)
-/// used to end at N·fl(h) ≠ T (h = 0.1: 5.6e−14 past T, an error of 2e−11 alone), so the
-/// error floor of an accurate run depended on how h rounds (3.7e−13 to 3.3e−11 across the 20
-/// step sizes below, 90×). The last step now makes the sizes add up to T: the floor is the
-/// same for every h, within 3× of the best one. r = 12 (order 24), whose truncation error is
+/// used to end at N·fl(h) ≠ T (h = 0.1: 5.6e−14 past T, an error of 2e−11 alone), and the
+/// dense propagator was that of fl(h·A) (a frequency off by up to ε/2), so the error floor of
+/// an accurate run depended on how h rounds (3.7e−13 to 2.3e−11 across the 20 step sizes
+/// below, 61×; the smallest a lucky cancellation against the reference's own 5.5e−12). The
+/// last step now makes the sizes add up to T and the propagator is that of h·A: the floor is
+/// the same for every h, within 3× of the best one (measured: 5.35e−12 to 5.46e−12). r = 12 (order 24), whose truncation error is
 /// below the floor over the whole range; EC6P (r = 6) has 1e−10 to 1e−6 there for h > 0.077,
 /// and its floor is that of the same runs at h ≤ 0.07.
 #[test]
