@@ -225,6 +225,46 @@ fn wind_problems_run() {
     }
 }
 
+/// Issue 28: the command of the issue failed at step 2 with "diverging stage iteration" (the
+/// iteration from the extrapolated guess diverged where the one from y₀ converges). A step
+/// whose guess fails is restarted from y₀: the run succeeds and ends where the run with
+/// `--constant-start` does, up to the stage solver's tolerance carried over 10 steps.
+#[test]
+fn wind_r12_h05_from_the_issue_runs() {
+    let cmd = [
+        "--problem",
+        "wind",
+        "--method",
+        "ec",
+        "--r",
+        "12",
+        "--h",
+        "0.5",
+    ];
+    let v = run_ok(&[&cmd[..], &["--t-end", "5"]].concat());
+    let c = run_ok(&[&cmd[..], &["--t-end", "5", "--constant-start"]].concat());
+    assert_eq!(v["steps"], 10);
+    assert_eq!(v["t_end"].as_f64(), Some(5.0));
+    assert_eq!(v["unconverged_steps"], 0);
+    let (y, yc) = (v["y"].as_array().unwrap(), c["y"].as_array().unwrap());
+    let scale = yc
+        .iter()
+        .fold(1.0f64, |m, x| m.max(x.as_f64().unwrap().abs()));
+    for (a, b) in y.iter().zip(yc) {
+        let (a, b) = (a.as_f64().unwrap(), b.as_f64().unwrap());
+        // Both iterate each step to the same fixed point to 1e−15 (scaled): 1e−12 leaves
+        // room for that carried over 10 steps of a mildly unstable rotation.
+        assert!(
+            (a - b).abs() <= 1e-12 * scale,
+            "y {a} vs {b} (--constant-start)"
+        );
+    }
+    println!(
+        "g evaluations: default {}, --constant-start {}",
+        v["g_evals"], c["g_evals"]
+    );
+}
+
 #[test]
 fn nls_runs_with_small_energy_error() {
     let v = run_ok(&[
@@ -614,4 +654,52 @@ fn nls_on_the_concurrent_path_never_aborts_under_an_address_space_limit() {
         }
     }
     println!("(ulimit -v KiB, status): {outcomes:?}");
+}
+
+/// Issue 27, the method's floor for any h: on Duffing ω = 20 over T = 1000, N steps of fl(h)
+/// used to end at N·fl(h) ≠ T (h = 0.1: 5.6e−14 past T, an error of 2e−11 alone), and the
+/// dense propagator was that of fl(h·A) (a frequency off by up to ε/2), so the error floor of
+/// an accurate run depended on how h rounds (3.7e−13 to 2.3e−11 across the 20 step sizes
+/// below, 61×; the smallest a lucky cancellation against the reference's own 5.5e−12). The
+/// last step now makes the sizes add up to T and the propagator is that of h·A: the floor is
+/// the same for every h, within 3× of the best one (measured: 5.35e−12 to 5.46e−12). r = 12 (order 24), whose truncation error is
+/// below the floor over the whole range; EC6P (r = 6) has 1e−10 to 1e−6 there for h > 0.077,
+/// and its floor is that of the same runs at h ≤ 0.07.
+#[test]
+fn the_error_floor_is_the_same_for_every_h() {
+    let errors: Vec<(f64, f64)> = (0..20)
+        .map(|k| {
+            let h = 0.05 * 4f64.powf(k as f64 / 19.0);
+            let hs = format!("{h}");
+            let v = run_ok(&[
+                "--problem",
+                "duffing",
+                "--omega",
+                "20",
+                "--r",
+                "12",
+                "--h",
+                &hs,
+                "--t-end",
+                "1000",
+            ]);
+            assert_eq!(v["t_end"].as_f64(), Some(1000.0));
+            // The last step is h corrected by round-off, or a shortened one.
+            let last = v["h_last"].as_f64().unwrap();
+            assert!(
+                last > 0.0 && last <= h * (1.0 + 1e-12),
+                "h = {h}: h_last = {last}"
+            );
+            (h, v["global_error"].as_f64().unwrap())
+        })
+        .collect();
+    let best = errors.iter().map(|e| e.1).fold(f64::INFINITY, f64::min);
+    let worst = errors.iter().map(|e| e.1).fold(0.0, f64::max);
+    for (h, e) in &errors {
+        println!("h = {h:.6}: error {e:.3e}");
+    }
+    assert!(
+        worst <= 3.0 * best,
+        "error floor from {best:e} to {worst:e} across h: {errors:?}"
+    );
 }

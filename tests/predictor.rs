@@ -2,7 +2,8 @@
 //! starts, not the fixed point, so the steps agree with the y₀ start up to the solver tolerance,
 //! it needs fewer sweeps, and it is used only when the step continues the previous one.
 
-use ecr::problems::{Duffing, Fpu, Nls};
+use ecr::problems::{Duffing, Fpu, Nls, Wind};
+use ecr_runtime::integrate::{IntegrateOptions, Report, integrate};
 use ecr_runtime::second_order::TcStepper;
 use ecr_runtime::stepper::{EcStepper, Predictor, SolverSettings};
 use ecr_runtime::system::System;
@@ -149,4 +150,73 @@ fn same_steps_fewer_sweeps_tc() {
     println!("FPU TC3P h = {h}: max relative difference {worst:.2e}; sweeps {sa} → {sb}");
     assert!(worst <= 1e-12, "{worst:e}");
     assert!((sb as f64) < 0.85 * sa as f64, "{sb} vs {sa}");
+}
+
+/// Integrates the conservative wind problem over [0, t_end] with ECrP (s = r) from the given
+/// start of the stage iteration, as `ecr run --problem wind` does.
+fn wind_run(
+    r: usize,
+    h: f64,
+    t_end: f64,
+    predictor: Predictor,
+) -> ecr_runtime::Result<(Vec<f64>, Report)> {
+    let wind = Wind::conservative();
+    let mut stepper = EcStepper::with_nodes(wind.system()?, r, r, h, settings(predictor))?;
+    let mut y = wind.initial_value();
+    let options = IntegrateOptions::default();
+    let report = integrate(&mut stepper, 0.0, t_end, &mut y, options, |_, _, _| {})?;
+    Ok((y, report))
+}
+
+/// Issue 28: the extrapolated guess is far from the stages where the previous step's
+/// continuous solution does not extend well beyond the step (wind, r ≥ 8 at h ≥ 0.25, r = 6
+/// at h = 1), and the iteration from it diverged where the iteration from y₀ converges. A step
+/// whose iteration from the guess fails restarts from y₀, so the default start succeeds
+/// wherever the y₀ start does: every r = 1..12, on a grid of h up to the first h where the y₀
+/// start itself fails (the grid of each r ends there).
+#[test]
+fn failed_guess_restarts_from_y0() {
+    let t_end = 10.0;
+    let hs = [
+        0.0625, 0.125, 0.1875, 0.25, 0.375, 0.5, 0.625, 0.75, 0.875, 1.0, 1.25, 1.5, 2.0, 2.5,
+    ];
+    for r in 1..=12 {
+        let mut reached = 0.0;
+        let mut line = format!("r = {r:2}:");
+        for &h in &hs {
+            let Ok((constant, from_y0)) = wind_run(r, h, t_end, Predictor::Constant) else {
+                line += &format!(" (y₀ start fails at h = {h})");
+                break;
+            };
+            let (guessed, report) =
+                wind_run(r, h, t_end, Predictor::Extrapolate).unwrap_or_else(|e| {
+                    panic!("r = {r}, h = {h}: the y₀ start converges, the default fails: {e}")
+                });
+            // Both iterate to the same fixed point to ≤ 1e-15 per step: the states agree to
+            // round-off carried over at most 160 steps.
+            let diff = rel_diff(&guessed, &constant);
+            assert!(diff <= 1e-11, "r = {r}, h = {h}: {diff:e}");
+            line += &format!(" {h}:{}/{}", report.g_evals, from_y0.g_evals);
+            reached = h;
+        }
+        println!("{line}");
+        // The cases of the issue are on the grid.
+        if r >= 8 {
+            assert!(reached >= 0.5, "r = {r}: the y₀ start failed below h = 0.5");
+        }
+    }
+}
+
+/// Where the guess keeps failing (wind, r = 12, h = 0.5: `ecr run --problem wind --method ec
+/// --r 12 --h 0.5 --t-end 5`, issue 28), the steps after a failure start at y₀ and the guess
+/// is retried after 1, 2, 4, … steps: the run costs little more than the y₀ start.
+#[test]
+fn failing_guess_costs_little() {
+    let (_, constant) = wind_run(12, 0.5, 100.0, Predictor::Constant).unwrap();
+    let (_, guessed) = wind_run(12, 0.5, 100.0, Predictor::Extrapolate).unwrap();
+    println!(
+        "g evaluations: y₀ start {}, default {}",
+        constant.g_evals, guessed.g_evals
+    );
+    assert!((guessed.g_evals as f64) < 1.2 * constant.g_evals as f64);
 }

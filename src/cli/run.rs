@@ -3,7 +3,7 @@
 use super::{UsageError, memory, progress};
 use clap::{Args, ValueEnum};
 use ecr::problems::{Duffing, Fpu, Nls, Wind};
-use ecr_runtime::integrate::{IntegrateOptions, Integrator, Report, integrate};
+use ecr_runtime::integrate::{IntegrateOptions, Integrator, Report, StepPlan, integrate};
 use ecr_runtime::second_order::TcStepper;
 use ecr_runtime::solve::{Options, Problem, Solution, SolveError};
 use ecr_runtime::stepper::{EcStepper, PARALLEL_MIN_DIM, Predictor, SolverSettings, StageSolver};
@@ -117,7 +117,8 @@ pub struct RunArgs {
     /// answer that could not be verified is reported with its reason and exit status 2.
     #[arg(long, allow_negative_numbers = true, conflicts_with_all = ["h", "s", "paper_solver", "max_sweeps", "constant_start", "extrapolate", "newton", "tolerance"])]
     tol: Option<f64>,
-    /// Final time T ≥ 0 (the last step is shortened if h does not divide T).
+    /// Final time T ≥ 0 (the last step makes the step sizes add up to T exactly: shortened if
+    /// h does not divide T, or h corrected by round-off; the report's `h_last`).
     #[arg(long, allow_negative_numbers = true)]
     t_end: f64,
     /// The paper's stage solver: tolerance 1e−16, at most 5 sweeps, accepted at the limit.
@@ -569,6 +570,7 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), UsageError> {
         "r": args.r(),
         "s": args.s.unwrap_or(args.r()),
         "h": args.h(),
+        "h_last": last_step(args),
         "t_end": report.t_end,
         "steps": report.steps,
         "solver": {
@@ -593,6 +595,13 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), UsageError> {
     text.push('\n');
     out.write_all(text.as_bytes())
         .map_err(|e| UsageError(format!("cannot write output: {e}")))
+}
+
+/// The size of the run's last step ([`StepPlan`]: h, or the step that makes the sizes add up
+/// to T exactly, shortened or h corrected by round-off); `None` for an empty run.
+fn last_step(args: &RunArgs) -> Option<f64> {
+    let plan = StepPlan::new(0.0, args.t_end, args.h()).ok()?;
+    (plan.steps() > 0).then(|| plan.last.unwrap_or(args.h()))
 }
 
 /// What a solve to a tolerance produced, for the report.

@@ -69,12 +69,15 @@ impl NodeFunctions {
     /// The `p + 1` matrix functions at `X = τ_i h A`, and the low part of the propagator
     /// `e^X = out[0] + lo` where it is carried in double-double: at τ = 1 in a Legendre bank,
     /// for `d ≤ DD_PROPAGATOR_MAX_DIM`. The other nodes of a Legendre bank take `out[0]` from
-    /// the double-double exponential too for `d ≤ DD_STAGE_PROPAGATOR_MAX_DIM`.
+    /// the double-double exponential too for `d ≤ DD_STAGE_PROPAGATOR_MAX_DIM`. `x_lo`, if
+    /// given, is the rounding error of `x` (`X = x + x_lo`), taken into the double-double
+    /// propagator only.
     #[allow(clippy::type_complexity)]
     pub(crate) fn dense(
         &self,
         i: usize,
         x: &nalgebra::DMatrix<f64>,
+        x_lo: Option<&nalgebra::DMatrix<f64>>,
         p: usize,
     ) -> Result<(Vec<nalgebra::DMatrix<f64>>, Option<nalgebra::DMatrix<f64>>)> {
         match &self.legendre {
@@ -82,7 +85,7 @@ impl NodeFunctions {
             Some((k, maps)) => {
                 let d = x.nrows();
                 let (mut out, lo) = if self.carries_dd(i) && d <= DD_PROPAGATOR_MAX_DIM {
-                    let (hi, lo) = crate::phi::expm_dd(x)?;
+                    let (hi, lo) = crate::phi::expm_dd_split(x, x_lo)?;
                     (vec![hi], Some(lo))
                 } else if d <= DD_STAGE_PROPAGATOR_MAX_DIM {
                     (vec![crate::phi::expm_dd(x)?.0], None)

@@ -187,7 +187,7 @@ fn damped_blocks(
     let w = if lambda > 1.0 { lambda.sqrt() } else { 1.0 };
     // D X D⁻¹ = [[0, t w], [−t λ/w, t ν]].
     let x = DMatrix::from_row_slice(2, 2, &[0.0, t * w, -t * lambda / w, t * nu]);
-    let (mats, _) = f.dense(i, &x, p)?;
+    let (mats, _) = f.dense(i, &x, None, p)?;
     // Undo the balancing: f(X)_01 = f̃_01 / w, f(X)_10 = f̃_10 · w.
     Ok(mats
         .iter()

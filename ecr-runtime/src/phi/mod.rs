@@ -44,5 +44,6 @@ pub use scalar::{phi_complex, phi_diagonal, phi_real, phi_trig};
 
 pub(crate) use dd::{Dd, cexp_dd, exp_dd};
 pub(crate) use dense::{
-    check_symmetric, expm_dd, symmetric_eigen, two_prod, two_sum, validate as validate_matrix,
+    check_symmetric, expm_dd, expm_dd_split, symmetric_eigen, two_prod, two_sum,
+    validate as validate_matrix,
 };

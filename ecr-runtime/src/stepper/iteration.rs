@@ -15,20 +15,26 @@ use crate::error::Result;
 use crate::operator::PhiBank;
 use crate::system::System;
 
-/// How the stage iteration of a step ended.
+/// How the stage iteration of a step ended (the work done is in [`Effort`]).
 pub(super) struct Iteration {
-    /// Sweeps done.
-    pub(super) sweeps: usize,
     /// The last update in the stopping rule's scale.
     pub(super) residual: f64,
     /// The last update in the global scale.
     pub(super) global: f64,
     /// Whether the stopping rule held (else the sweep limit was reached).
     pub(super) converged: bool,
-    /// Evaluations of g in the sweeps.
-    pub(super) g_evals: usize,
     /// The largest ratio of consecutive updates (0 if there was one sweep).
     pub(super) theta_step: f64,
+}
+
+/// The work of a stage iteration so far, kept up to date sweep by sweep, so that a step counts
+/// also the work of an iteration that failed (and was restarted from y₀).
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct Effort {
+    /// Sweeps done.
+    pub(super) sweeps: usize,
+    /// Evaluations of g in the sweeps.
+    pub(super) g_evals: usize,
 }
 
 impl<K: Kernel, S: System, B: Buffers> StepContext<'_, K, S, B> {
@@ -68,7 +74,8 @@ impl<K: Kernel, S: System, B: Buffers> StepContext<'_, K, S, B> {
     /// Sweeps from the first iterate in `stages` (g there in `g`) until the stopping rule
     /// holds or the sweep limit is reached; each sweep's update measured in the settings'
     /// scale (`PER_COMPONENT`), corrected by Newton where `newton` is given (`NEWTON`).
-    /// `theta_floor` is the contraction seen in the step before (1 if none is known).
+    /// `theta_floor` is the contraction seen in the step before (1 if none is known). `effort`
+    /// receives the sweeps and evaluations of g done, also when the iteration fails.
     ///
     /// # Errors
     /// As [`stage_fault`] when the stages become non-finite; Newton's errors.
@@ -84,6 +91,7 @@ impl<K: Kernel, S: System, B: Buffers> StepContext<'_, K, S, B> {
         moments: &mut [f64],
         theta_floor: f64,
         mut newton: Option<&mut NewtonStep<'_>>,
+        effort: &mut Effort,
     ) -> Result<Iteration> {
         let (_, s, d) = self.sizes;
         let (tolerance, max_sweeps) = (self.settings.tolerance, self.settings.max_sweeps);
@@ -147,10 +155,12 @@ impl<K: Kernel, S: System, B: Buffers> StepContext<'_, K, S, B> {
             stages.copy_from_slice(new_stages);
             sweeps += 1;
             if !global.is_finite() {
+                effort.sweeps = sweeps;
                 return Err(stage_fault(g, last_global));
             }
             self.eval_stages(stages, g, unchanged)?;
             g_evals += s - usize::from(unchanged.is_some());
+            *effort = Effort { sweeps, g_evals };
             if previous.is_finite() {
                 theta_step = theta_step.max(residual / previous);
             }
@@ -161,11 +171,9 @@ impl<K: Kernel, S: System, B: Buffers> StepContext<'_, K, S, B> {
             } || y1_converged(residual, previous, theta_floor, tolerance);
             if converged || sweeps >= max_sweeps {
                 return Ok(Iteration {
-                    sweeps,
                     residual,
                     global,
                     converged,
-                    g_evals,
                     theta_step,
                 });
             }

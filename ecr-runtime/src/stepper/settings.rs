@@ -24,6 +24,11 @@ pub enum Predictor {
     /// exact for the linear part and O(h^{r+1}) close to the stages, so fewer sweeps are needed
     /// (the converged step is the same up to round-off). Used when the step starts where the
     /// previous one ended (compared bit for bit) with the same h; otherwise as `Constant`.
+    /// A guess whose iteration fails (diverges, or reaches the sweep limit with
+    /// [`SweepLimit::Error`]) does not fail the step: the step is restarted from y₀, and the
+    /// guess is tried again after 1, 2, 4, … steps from y₀ while it keeps failing (wind, r ≥ 8
+    /// at h ≥ 0.25: issue 28); the work of the failed iteration is counted in the
+    /// [`StepReport`]. Steps whose guess converges are unchanged.
     /// Costs s more φ-bank entries and one `combine` over s nodes per step. The default: it
     /// saves about one sweep per step on Duffing (ω = 20, r = 2..8, h = 1/4..1/64) and three
     /// to four on the NLS (N = 128, r = 3..5, h = 0.025..0.2), for the cost of about one

@@ -6,6 +6,7 @@ use std::marker::PhantomData;
 use super::buffers::{BufferParts, Buffers, VecBuffers};
 use super::context::{Bank, BankWorkspace, StepContext};
 use super::fused::{FusedMaps, fused_maps, fuses_stages};
+use super::iteration::Effort;
 use super::kernel::{FixedKernel, Kernel, RuntimeKernel, kernel_coefficients};
 use super::newton::{NewtonState, newton_entries};
 use super::parallel::ParallelState;
@@ -43,6 +44,57 @@ pub struct Stepper<K: Kernel, S: System, B: Buffers> {
     /// The memory of the concurrent stage path, for d ≥
     /// [`SolverSettings::parallel_min_dim`] (else `None`: the serial path).
     par: Option<Box<ParallelState<BankWorkspace<S>>>>,
+    /// How the extrapolated guess ([`Predictor::Extrapolate`]) has fared at this h (see
+    /// [`GuessBackoff`]).
+    guess: GuessBackoff,
+}
+
+/// When to try the extrapolated guess ([`Predictor::Extrapolate`]) again after it failed.
+///
+/// The guess is only a starting point: where the previous step's continuous solution does not
+/// extend well beyond its step (wind, r ≥ 8 at h ≥ 0.25), the iteration from it can diverge
+/// where the iteration from y₀ converges. A step whose iteration from the guess fails (an error,
+/// or the sweep limit with [`SweepLimit::Error`]) is restarted from y₀; the next `wait` steps
+/// then start from y₀, and the guess is tried again after 1, 2, 4, … such steps while it keeps
+/// failing (the wait doubles up to [`GuessBackoff::MAX_WAIT`]; a guess that converges resets
+/// it). Steps whose guess converges are unchanged, bit for bit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct GuessBackoff {
+    /// Steps still to start from y₀ before the guess is tried again.
+    wait: usize,
+    /// The wait after the next failure of the guess.
+    next_wait: usize,
+}
+
+impl GuessBackoff {
+    /// The longest wait: the guess is tried at least once every this many steps, so that a run
+    /// whose guess fails only in a stretch of it gets the guess back soon after.
+    const MAX_WAIT: usize = 64;
+
+    const FRESH: GuessBackoff = GuessBackoff {
+        wait: 0,
+        next_wait: 1,
+    };
+
+    /// Whether this step starts from the guess (else from y₀, counting down the wait).
+    fn try_guess(&mut self) -> bool {
+        if self.wait == 0 {
+            return true;
+        }
+        self.wait -= 1;
+        false
+    }
+
+    /// The guess failed: wait, and wait twice as long after the next failure.
+    fn failed(&mut self) {
+        self.wait = self.next_wait;
+        self.next_wait = (2 * self.next_wait).min(Self::MAX_WAIT);
+    }
+
+    /// The guess converged.
+    fn converged(&mut self) {
+        self.next_wait = 1;
+    }
 }
 
 /// ECrP with r and s chosen at run time.
@@ -130,6 +182,7 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             newton: None,
             theta: 1.0,
             par,
+            guess: GuessBackoff::FRESH,
         })
     }
 
@@ -187,6 +240,7 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
         self.have_previous = false;
         self.newton = None;
         self.theta = 1.0;
+        self.guess = GuessBackoff::FRESH;
         Ok(())
     }
 
@@ -314,6 +368,7 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             newton,
             theta,
             par,
+            guess,
             ..
         } = self;
         buf.with_parts(|parts| {
@@ -355,32 +410,65 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                 sizes: (m, s, d),
                 buffers: PhantomData,
             };
-            // Newton: the Newton matrix at y₀, factorised.
-            let mut newton = if NEWTON {
-                Some(cx.newton_start(newton, y)?)
-            } else {
-                None
+            // The first iterate: the previous step extrapolated (unless the guess is waiting
+            // after a failure), or y₀ at every stage.
+            let predict = continuing && settings.predictor == Predictor::Extrapolate;
+            let mut extrapolate = predict && guess.try_guess();
+            // The work of an iteration from the guess that failed (restarted from y₀).
+            let mut failed = Effort::default();
+            let mut failed_newton = (0, 0, 0);
+            let (start_evals, it, effort, newton_counts) = loop {
+                // Newton: the Newton matrix at y₀, factorised.
+                let mut nt = if NEWTON {
+                    Some(cx.newton_start(newton, y)?)
+                } else {
+                    None
+                };
+                let mut effort = Effort::default();
+                let attempt = match cx.start(extrapolate, y, y0, moments, stages, props, g) {
+                    // Sweeps until the stopping rule holds.
+                    Ok(start_evals) => cx
+                        .iterate::<NEWTON, PER_COMPONENT>(
+                            y0,
+                            stages,
+                            new_stages,
+                            props,
+                            g,
+                            moments,
+                            theta_floor,
+                            nt.as_mut(),
+                            &mut effort,
+                        )
+                        .map(|it| (start_evals, it)),
+                    Err(e) => Err(e),
+                };
+                let newton_counts =
+                    nt.map_or((0, 0, 0), |n| (n.jacobian_evals, n.refreshes, n.g_evals));
+                if extrapolate {
+                    let accepted = attempt.as_ref().is_ok_and(|(_, it)| {
+                        it.converged || settings.on_limit == SweepLimit::Accept
+                    });
+                    if !accepted {
+                        // The guess failed: this step again from y₀ (counting the work done).
+                        let start_evals = attempt.as_ref().map_or(s, |(e, _)| *e);
+                        failed.sweeps += effort.sweeps;
+                        failed.g_evals += start_evals + effort.g_evals;
+                        failed_newton = newton_counts;
+                        guess.failed();
+                        extrapolate = false;
+                        continue;
+                    }
+                    guess.converged();
+                }
+                let (start_evals, it) = attempt?;
+                break (start_evals, it, effort, newton_counts);
             };
-            // The first iterate: the previous step extrapolated, or y₀ at every stage.
-            let extrapolate = continuing && settings.predictor == Predictor::Extrapolate;
-            let start_evals = cx.start(extrapolate, y, y0, moments, stages, props, g)?;
-            // Sweeps until the stopping rule holds.
-            let it = cx.iterate::<NEWTON, PER_COMPONENT>(
-                y0,
-                stages,
-                new_stages,
-                props,
-                g,
-                moments,
-                theta_floor,
-                newton.as_mut(),
-            )?;
             if !it.converged && settings.on_limit == SweepLimit::Error {
                 if let Some(what) = g_fault(g, it.global) {
                     return Err(Error::NonFinite(what));
                 }
                 return Err(Error::NoConvergence {
-                    sweeps: it.sweeps,
+                    sweeps: failed.sweeps + effort.sweeps,
                     residual: it.residual,
                     tolerance: settings.tolerance,
                 });
@@ -402,15 +490,18 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             } else {
                 theta_floor
             };
-            let (jacobian_evals, newton_refreshes, newton_evals) =
-                newton.map_or((0, 0, 0), |n| (n.jacobian_evals, n.refreshes, n.g_evals));
+            let (jacobian_evals, newton_refreshes, newton_evals) = newton_counts;
             Ok(StepReport {
-                sweeps: it.sweeps,
+                sweeps: failed.sweeps + effort.sweeps,
                 residual: it.residual,
-                g_evals: start_evals + newton_evals + it.g_evals,
+                g_evals: failed.g_evals
+                    + failed_newton.2
+                    + start_evals
+                    + newton_evals
+                    + effort.g_evals,
                 converged: it.converged,
-                jacobian_evals,
-                newton_refreshes,
+                jacobian_evals: failed_newton.0 + jacobian_evals,
+                newton_refreshes: failed_newton.1 + newton_refreshes,
             })
         })
     }
