@@ -36,7 +36,9 @@ fn sweep<S: System>(name: &str, system: S, y0: Vec<f64>, t_end: f64, exact: &[f6
         let tol = 10f64.powi(-k);
         let sol = match problem.solve(&Options::tolerance(tol).t_eval([t_end])) {
             Ok(sol) => sol,
-            Err(SolveError::Unverified { reason, .. }) if k == 12 && reason.contains("round-off") => {
+            Err(SolveError::Unverified { reason, .. })
+                if k == 12 && reason.contains("round-off") =>
+            {
                 eprintln!("{name}: tol 1e-{k}: not verified: {reason}");
                 continue;
             }

@@ -5,9 +5,9 @@ use clap::{Args, ValueEnum};
 use ecr::problems::{Duffing, Fpu, Nls, Wind};
 use ecr_runtime::integrate::{IntegrateOptions, Integrator, Report, integrate};
 use ecr_runtime::second_order::TcStepper;
-use ecr_runtime::solve::{Options, Problem, SolveError, Solution};
-use ecr_runtime::system::System;
+use ecr_runtime::solve::{Options, Problem, Solution, SolveError};
 use ecr_runtime::stepper::{EcStepper, PARALLEL_MIN_DIM, Predictor, SolverSettings, StageSolver};
+use ecr_runtime::system::System;
 use serde_json::{Value, json};
 use std::io::{IsTerminal, Write};
 use std::sync::Once;
@@ -674,7 +674,11 @@ fn run_tolerance(args: &RunArgs, tol: f64, out: &mut dyn Write) -> Result<(), Us
             let solved = solve_to(problem.system().map_err(usage)?, y0, t_end, tol, args.r)?;
             let exact = problem.exact(t_end).map_err(usage)?;
             let params = json!({ "omega": problem.omega(), "k": problem.k() });
-            (solved, params, (Some(exact.to_vec()), "exact".to_string(), Some(0.0)))
+            (
+                solved,
+                params,
+                (Some(exact.to_vec()), "exact".to_string(), Some(0.0)),
+            )
         }
         ProblemArg::Wind | ProblemArg::WindDissipative => {
             let radius = args.amplitude.unwrap_or(20.0);
@@ -685,7 +689,13 @@ fn run_tolerance(args: &RunArgs, tol: f64, out: &mut dyn Write) -> Result<(), Us
             }
             .map_err(usage)?;
             let y0 = problem.initial_value();
-            let solved = solve_to(problem.system().map_err(usage)?, y0.clone(), t_end, tol, args.r)?;
+            let solved = solve_to(
+                problem.system().map_err(usage)?,
+                y0.clone(),
+                t_end,
+                tol,
+                args.r,
+            )?;
             let reference = reference_of(solve_to(
                 problem.system().map_err(usage)?,
                 y0,
@@ -703,7 +713,13 @@ fn run_tolerance(args: &RunArgs, tol: f64, out: &mut dyn Write) -> Result<(), Us
         ProblemArg::Nls => {
             let problem = Nls::new(args.n.unwrap_or(128)).map_err(usage)?;
             let y0 = problem.initial_value();
-            let solved = solve_to(problem.system().map_err(usage)?, y0.clone(), t_end, tol, args.r)?;
+            let solved = solve_to(
+                problem.system().map_err(usage)?,
+                y0.clone(),
+                t_end,
+                tol,
+                args.r,
+            )?;
             let reference = reference_of(solve_to(
                 problem.system().map_err(usage)?,
                 y0,
@@ -725,7 +741,11 @@ fn run_tolerance(args: &RunArgs, tol: f64, out: &mut dyn Write) -> Result<(), Us
                 reference_tol,
                 None,
             ));
-            (solved, json!({ "m": problem.m(), "omega": problem.omega() }), reference)
+            (
+                solved,
+                json!({ "m": problem.m(), "omega": problem.omega() }),
+                reference,
+            )
         }
     };
     let Solved {
@@ -735,9 +755,7 @@ fn run_tolerance(args: &RunArgs, tol: f64, out: &mut dyn Write) -> Result<(), Us
     } = solved;
     let y = solution.last().map(<[f64]>::to_vec).unwrap_or_default();
     let (reference_y, reference_what, reference_estimate) = reference;
-    let achieved = reference_y
-        .as_ref()
-        .map(|r| in_tolerance_units(&y, r, tol));
+    let achieved = reference_y.as_ref().map(|r| in_tolerance_units(&y, r, tol));
     let stats = &solution.stats;
     let value: Value = json!({
         "problem": args.problem.name(),
