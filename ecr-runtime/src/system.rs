@@ -411,8 +411,9 @@ impl<GV: Fn(&[f64], &mut [f64]), V: Fn(&[f64]) -> f64> System for Hamiltonian<GV
 /// M is a dense matrix here: its [`Symmetric`] operator costs O(d²) per application and an
 /// O(d³) eigendecomposition. For a structured M, state the same flow as a [`Semilinear`]
 /// system with a structured operator for A = −M: a periodic Laplacian is a
-/// [`Circulant`](crate::operator::Circulant) (O(d log d) by FFT; on Allen–Cahn with d = 256
-/// hundreds of times faster, `examples/allen_cahn.rs` times both), a diagonal M a
+/// [`Circulant`](crate::operator::Circulant) (O(d log d) by FFT: on Allen–Cahn with d = 128,
+/// 20 steps of EC4P with the set-up took 7.6 ms against 2.3 s dense; `examples/allen_cahn.rs`
+/// times both), a diagonal M a
 /// [`Diagonal`](crate::operator::Diagonal).
 ///
 /// ```
