@@ -314,3 +314,26 @@ fn full_stdout_keeps_the_files_and_says_so() {
     );
     assert!(out.0.join("report.md").is_file());
 }
+
+/// Without --out, a quick run writes to its own directory, out/reproduce-quick, and leaves a
+/// full run's out/reproduce alone.
+#[test]
+fn quick_without_out_writes_its_own_directory() {
+    let dir = TempDir::new("reproduce-quick-default");
+    let full = dir.0.join("out").join("reproduce");
+    std::fs::create_dir_all(&full).unwrap();
+    std::fs::write(full.join("report.md"), "a full run's report").unwrap();
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_ecr"))
+        .args(["reproduce", "--quick"])
+        .current_dir(&dir.0)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8(run.stdout).unwrap();
+    assert_eq!(run.status.code(), Some(0), "{stdout}");
+    assert!(stdout.contains("out/reproduce-quick"), "{stdout}");
+    assert!(dir.0.join("out/reproduce-quick/report.md").is_file());
+    assert_eq!(
+        std::fs::read_to_string(full.join("report.md")).unwrap(),
+        "a full run's report"
+    );
+}
