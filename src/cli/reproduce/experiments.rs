@@ -119,8 +119,12 @@ impl Reference {
 #[derive(Clone, Debug)]
 pub struct ErrorRun {
     pub method: String,
+    /// The step size asked for (for a method that chooses its own steps: the output step).
     pub h: f64,
+    /// The steps taken: T/h, or those the method chose.
     pub steps: usize,
+    /// The method chose its own steps (DOP853): `steps` is not T/h.
+    pub own_steps: bool,
     /// max-norm of y(T) − y_ref(T).
     pub error: f64,
     pub seconds: f64,
@@ -405,6 +409,8 @@ struct Outcome {
     report: Report,
     y: Vec<f64>,
     seconds: f64,
+    /// The steps a method that chooses its own took ([`Harness::own_steps`](super::methods::Harness::own_steps)).
+    own_steps: Option<usize>,
 }
 
 /// Integrates `problem` on [0, t_end] with a built integrator, calling `observer(t, y, H)`
@@ -466,6 +472,7 @@ fn run_one(
         report,
         y,
         seconds: start.elapsed().as_secs_f64(),
+        own_steps: stepper.0.own_steps(),
     })
 }
 
@@ -549,7 +556,8 @@ fn error_study(
                 Ok(o) => study.runs.push(ErrorRun {
                     method: m.name.to_string(),
                     h,
-                    steps: o.report.steps,
+                    steps: o.own_steps.unwrap_or(o.report.steps),
+                    own_steps: o.own_steps.is_some(),
                     error: max_diff(&o.y, &y_ref),
                     seconds: o.seconds,
                     sweeps: o.report.sweeps,
@@ -966,6 +974,7 @@ mod tests {
             method: "M".to_string(),
             h,
             steps: 1,
+            own_steps: false,
             error,
             seconds: 0.0,
             sweeps: 0,
