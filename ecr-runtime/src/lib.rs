@@ -194,6 +194,11 @@ pub mod prelude {
     pub use crate::{Error, Result};
 }
 
+// The README's example runs as a doctest.
+#[doc = include_str!("../README.md")]
+#[cfg(doctest)]
+pub struct ReadmeDoctests;
+
 // Lets code emitted by `ecr_method!` name this crate `::ecr_runtime` from inside it too.
 extern crate self as ecr_runtime;
 
