@@ -1,33 +1,58 @@
 //! ecr: exponential collocation methods — energy-preserving exponential integrators of any
 //! order 2r for y' = Q∇H(y) (facade over `ecr-codegen`, `ecr-runtime` and `ecr-macros`).
 //!
-//! ```
-//! use ecr::runtime::nalgebra::DMatrix;
-//! use ecr::runtime::operator::Dense;
-//! use ecr::runtime::stepper::EcStepper;
-//! use ecr::runtime::system::Semilinear;
+//! # Quick start: to a tolerance
 //!
-//! // The Duffing equation q'' = −(ω² + k²)q + 2k²q³ as y' = Ay + g(y), y = (q, p); its energy
-//! // H = ½p² + ½(ω² + k²)q² − ½k²q⁴ is a first integral.
+//! A problem (system, y₀, time span), solved to a tolerance; the solution owns its data
+//! (`docs/solve.md` in the repository says how the order and the step are chosen):
+//!
+//! ```
+//! use ecr::prelude::*;
+//!
+//! // H(q, p) = ½p² + ½q² + ¼q⁴, y = (q, p); ∇V is written into zeros.
+//! let grad_v = |y: &[f64], g: &mut [f64]| g[0] = y[0].powi(3);
+//! let system = Hamiltonian::canonical(DMatrix::identity(2, 2), grad_v)?
+//!     .potential(|y| 0.25 * y[0].powi(4));
+//! let options = Options::tolerance(1e-8).t_eval(linspace(0.0, 20.0, 5));
+//! let sol = Problem::new(system, [1.0, 0.0], (0.0, 20.0))?.solve(&options)?;
+//! assert_eq!(sol.t, [0.0, 5.0, 10.0, 15.0, 20.0]);
+//! println!("y(20) = {:?}, order {}, h = {}", sol.y[4], 2 * sol.r, sol.h);
+//! assert!(sol.energy_error().unwrap() < 1e-8);
+//! # Ok::<(), ecr::runtime::Error>(())
+//! ```
+//!
+//! Pick the linear part's structure: the prelude has every operator (`Zero`, `Scalar`,
+//! `Diagonal`, `Dense`, `Symmetric`, `Circulant`, `Circulant2d`, `SkewPair`, `Oscillator`),
+//! and each pays only for its structure: a periodic Laplacian as a `Circulant` costs
+//! O(d log d) per application where a dense `Symmetric` costs O(d²). The repository's
+//! `examples/` show which tool fits which problem (`kepler.rs`: a tolerance instead of a
+//! fixed step at e = 0.99; `allen_cahn.rs`: `Circulant` against a dense operator).
+//!
+//! # Quick start: a fixed-order stepper in your own loop
+//!
+//! [`ecr_method!`] emits a stepper with exact compile-time coefficients and sizes, bit for
+//! bit the steps of the run-time `EcStepper`:
+//!
+//! ```
+//! use ecr::prelude::*;
+//!
+//! ecr_method!(r = 3); // EC3P (order 6): Ec3<Sys, D>, Ec3Dyn<Sys>
+//!
+//! // Duffing: q'' = −(ω² + k²)q + 2k²q³ as y' = Ay + g(y), y = (q, p), with the energy
+//! // H = ½p² + ½(ω² + k²)q² − ½k²q⁴.
 //! let (omega, k) = (5.0_f64, 0.07_f64);
 //! let w2 = omega * omega + k * k;
-//! let a = DMatrix::from_row_slice(2, 2, &[0.0, 1.0, -w2, 0.0]);
-//! let g = move |y: &[f64], out: &mut [f64]| {
-//!     out[0] = 0.0;
-//!     out[1] = 2.0 * k * k * y[0].powi(3);
-//! };
-//! let energy = |y: &[f64]| {
-//!     0.5 * y[1] * y[1] + 0.5 * w2 * y[0] * y[0] - 0.5 * k * k * y[0].powi(4)
-//! };
-//! // EC3P: order 6, step size 0.01.
-//! let system = Semilinear::new(Dense::new(a).unwrap(), g);
-//! let mut stepper = EcStepper::new(system, 3, 0.01).unwrap();
-//! let mut y = vec![0.0, omega];
+//! let a = DenseStatic::new(SMatrix::<f64, 2, 2>::new(0.0, 1.0, -w2, 0.0))?;
+//! let g = move |y: &[f64], out: &mut [f64]| (out[0], out[1]) = (0.0, 2.0 * k * k * y[0].powi(3));
+//! let energy = |y: &[f64]| 0.5 * y[1] * y[1] + 0.5 * w2 * y[0] * y[0] - 0.5 * k * k * y[0].powi(4);
+//! let mut stepper: Ec3<_, 2> = Ec3::fixed(Semilinear::new(a, g), 0.01)?;
+//! let mut y = [0.0, omega];
 //! for _ in 0..100 {
-//!     stepper.step(&mut y).unwrap();
+//!     stepper.step(&mut y)?; // in place, no allocation
 //! }
 //! // H = 12.5 kept to a few ulps (5e-15 here); 1e-12 leaves room for other platforms' libm.
 //! assert!((energy(&y) - energy(&[0.0, omega])).abs() < 1e-12);
+//! # Ok::<(), ecr::runtime::Error>(())
 //! ```
 //!
 //! # Features

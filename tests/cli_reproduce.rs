@@ -65,8 +65,22 @@ fn quick_reproduction_writes_everything() {
     let out = dir.0.join("nested").join("out");
     let (code, stdout, stderr) = ecr(&["reproduce", "--quick", "--out", out.to_str().unwrap()]);
     assert_eq!(code, 0, "stderr: {stderr}");
-    // Progress bars are hidden when stderr is not a terminal.
-    assert!(stderr.is_empty(), "unexpected stderr: {stderr}");
+    // With stderr not a terminal, progress comes as plain lines: one at the start, one at
+    // the end (at most one every 15 s between them), nothing else.
+    let lines: Vec<&str> = stderr.lines().collect();
+    assert!(lines.len() >= 2, "no progress lines: {stderr}");
+    assert!(
+        lines.iter().all(|l| l.starts_with("progress: ")),
+        "{stderr}"
+    );
+    assert!(
+        lines[0].contains("0% after 0s") && lines[0].ends_with("starting"),
+        "{stderr}"
+    );
+    assert!(
+        lines[lines.len() - 1].starts_with("progress: done in "),
+        "{stderr}"
+    );
     assert!(stdout.contains("report.md"), "{stdout}");
 
     for fig in FIGURES {
@@ -286,12 +300,40 @@ fn full_stdout_keeps_the_files_and_says_so() {
         .stdout(full)
         .output()
         .unwrap();
-    let err = String::from_utf8(run.stderr).unwrap();
-    assert_eq!(run.status.code(), Some(1), "{err}");
-    assert_eq!(err.lines().count(), 1, "{err}");
+    let stderr = String::from_utf8(run.stderr).unwrap();
+    assert_eq!(run.status.code(), Some(1), "{stderr}");
+    // Besides the plain progress lines, one line.
+    let err: Vec<&str> = stderr
+        .lines()
+        .filter(|l| !l.starts_with("progress: "))
+        .collect();
+    assert_eq!(err.len(), 1, "{stderr}");
     assert!(
-        err.starts_with("error: wrote ") && err.contains(dir),
-        "{err}"
+        err[0].starts_with("error: wrote ") && err[0].contains(dir),
+        "{stderr}"
     );
     assert!(out.0.join("report.md").is_file());
+}
+
+/// Without --out, a quick run writes to its own directory, out/reproduce-quick, and leaves a
+/// full run's out/reproduce alone.
+#[test]
+fn quick_without_out_writes_its_own_directory() {
+    let dir = TempDir::new("reproduce-quick-default");
+    let full = dir.0.join("out").join("reproduce");
+    std::fs::create_dir_all(&full).unwrap();
+    std::fs::write(full.join("report.md"), "a full run's report").unwrap();
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_ecr"))
+        .args(["reproduce", "--quick"])
+        .current_dir(&dir.0)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8(run.stdout).unwrap();
+    assert_eq!(run.status.code(), Some(0), "{stdout}");
+    assert!(stdout.contains("out/reproduce-quick"), "{stdout}");
+    assert!(dir.0.join("out/reproduce-quick/report.md").is_file());
+    assert_eq!(
+        std::fs::read_to_string(full.join("report.md")).unwrap(),
+        "a full run's report"
+    );
 }

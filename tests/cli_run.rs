@@ -15,7 +15,7 @@ fn run_ok(args: &[&str]) -> serde_json::Value {
     serde_json::from_str(&out).unwrap_or_else(|e| panic!("bad JSON ({e}): {out}"))
 }
 
-const FIELDS: [&str; 17] = [
+const FIELDS: [&str; 18] = [
     "problem",
     "method",
     "r",
@@ -27,6 +27,7 @@ const FIELDS: [&str; 17] = [
     "energy_start",
     "energy_end",
     "max_energy_error",
+    "energy_error_units",
     "global_error",
     "sweeps",
     "max_sweeps_per_step",

@@ -28,7 +28,8 @@ pub struct Cli {
 enum Command {
     /// Regenerate the exact coefficient tables of a method (nodes, weights, moment weights).
     Tables(tables::TablesArgs),
-    /// Integrate a test problem (duffing, wind, wind-dissipative, nls) and print a JSON report.
+    /// Integrate a test problem (duffing, wind, wind-dissipative, nls, fpu) and print a JSON
+    /// report.
     ///
     /// Bad input and runtime failures (such as stage equations that do not converge) print one
     /// line starting with 'error: ' on stderr and exit with status 2.

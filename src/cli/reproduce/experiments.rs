@@ -6,8 +6,9 @@ use ecr::problems::{Duffing, Nls, Wind};
 use ecr_runtime::integrate::{IntegrateOptions, Report, StepPlan, integrate};
 use ecr_runtime::stepper::SolverSettings;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use std::io::IsTerminal;
-use std::time::Instant;
+use std::cell::{Cell, RefCell};
+use std::io::{IsTerminal, Write};
+use std::time::{Duration, Instant};
 
 /// Points per energy / Lyapunov curve (each the max over its window of steps).
 pub const SAMPLES: usize = 1000;
@@ -118,8 +119,12 @@ impl Reference {
 #[derive(Clone, Debug)]
 pub struct ErrorRun {
     pub method: String,
+    /// The step size asked for (for a method that chooses its own steps: the output step).
     pub h: f64,
+    /// The steps taken: T/h, or those the method chose.
     pub steps: usize,
+    /// The method chose its own steps (DOP853): `steps` is not T/h.
+    pub own_steps: bool,
     /// max-norm of y(T) − y_ref(T).
     pub error: f64,
     pub seconds: f64,
@@ -239,39 +244,163 @@ pub fn step_cost(method: &str, problem: &Problem) -> f64 {
 /// The name [`step_cost`] knows the reference runs of the error studies by.
 const REFERENCE_METHOD: &str = "reference";
 
-/// A progress bar over all the runs of the reproduction, each step weighted by its expected
-/// cost ([`step_cost`]); drawn on stderr only when stderr is a terminal.
+/// Progress over all the runs of the reproduction, each step weighted by its expected cost
+/// ([`step_cost`]), on stderr: a bar when stderr is a terminal, otherwise plain lines (CI logs,
+/// pipes), one at the start, then at most one every [`LINE_EVERY`], and one at the end. The
+/// time left is the time so far scaled by the work left ([`Eta`]), shown once a share of the
+/// work is done, rather than indicatif's estimate from the recent rate, which read 47 minutes
+/// at the start of a three-minute run.
 pub struct Progress {
-    bar: ProgressBar,
+    bar: Option<ProgressBar>,
+    lines: Option<RefCell<Lines>>,
+    eta: Eta,
+    done: Cell<u64>,
+}
+
+/// Plain progress lines: when the last one was printed, and the message of the current run.
+struct Lines {
+    last: Instant,
+    message: String,
+}
+
+/// At most one plain progress line per this interval.
+pub const LINE_EVERY: Duration = Duration::from_secs(15);
+
+/// Every plain progress line starts with this.
+pub const LINE_PREFIX: &str = "progress: ";
+
+/// The time left, from the time so far and the share of the (weighted) work done.
+#[derive(Clone, Copy, Debug)]
+pub struct Eta {
+    start: Instant,
+    total: u64,
+}
+
+impl Eta {
+    /// No estimate before this share of the work is done.
+    const MIN_SHARE: f64 = 0.02;
+
+    /// The time left after `done` of `total`, or None while the share done is below
+    /// [`Eta::MIN_SHARE`].
+    pub fn left(&self, done: u64, elapsed: Duration) -> Option<Duration> {
+        let share = done as f64 / self.total.max(1) as f64;
+        (share >= Self::MIN_SHARE).then(|| {
+            Duration::from_secs_f64(elapsed.as_secs_f64() * (1.0 - share.min(1.0)) / share)
+        })
+    }
+}
+
+/// "42s", "3m05s", "1h02m".
+pub fn duration_text(d: Duration) -> String {
+    let s = d.as_secs_f64().round() as u64;
+    match s {
+        0..60 => format!("{s}s"),
+        60..3600 => format!("{}m{:02}s", s / 60, s % 60),
+        _ => format!("{}h{:02}m", s / 3600, s % 3600 / 60),
+    }
 }
 
 impl Progress {
     fn new(total: u64) -> Self {
-        let target = if std::io::stderr().is_terminal() {
-            ProgressDrawTarget::stderr()
-        } else {
-            ProgressDrawTarget::hidden()
+        let eta = Eta {
+            start: Instant::now(),
+            total,
         };
-        let bar = ProgressBar::with_draw_target(Some(total), target);
-        if let Ok(style) = ProgressStyle::with_template(
-            "{elapsed_precise} [{bar:30}] {percent:>3}% eta {eta:>4} {msg}",
-        ) {
-            bar.set_style(style.progress_chars("=> "));
+        let terminal = std::io::stderr().is_terminal();
+        let bar = terminal.then(|| {
+            let bar = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::stderr());
+            if let Ok(style) = ProgressStyle::with_template(
+                "{elapsed_precise} [{bar:30}] {percent:>3}% {prefix} {msg}",
+            ) {
+                bar.set_style(style.progress_chars("=> "));
+            }
+            bar.set_prefix("eta  …");
+            bar
+        });
+        let lines = (!terminal).then(|| {
+            RefCell::new(Lines {
+                last: eta.start,
+                message: String::new(),
+            })
+        });
+        let progress = Progress {
+            bar,
+            lines,
+            eta,
+            done: Cell::new(0),
+        };
+        if progress.lines.is_some() {
+            progress.line("starting");
         }
-        Progress { bar }
+        progress
+    }
+
+    /// A plain line (not on a terminal): "progress: 37% after 1m05s, about 1m50s left: …".
+    fn line(&self, what: &str) {
+        let elapsed = self.eta.start.elapsed();
+        let done = self.done.get();
+        let share = 100.0 * done as f64 / self.eta.total.max(1) as f64;
+        let left = self.eta.left(done, elapsed).map_or_else(
+            || "time left not yet known".to_string(),
+            |d| format!("about {} left", duration_text(d)),
+        );
+        // A failed write to stderr (full, closed) is ignored: the run goes on.
+        let _ = writeln!(
+            std::io::stderr(),
+            "{LINE_PREFIX}{share:3.0}% after {}, {left}: {what}",
+            duration_text(elapsed)
+        );
+    }
+
+    /// Prints a plain line if the last one is [`LINE_EVERY`] old.
+    fn maybe_line(&self) {
+        let Some(lines) = &self.lines else { return };
+        let due = lines.borrow().last.elapsed() >= LINE_EVERY;
+        if due {
+            let message = {
+                let mut l = lines.borrow_mut();
+                l.last = Instant::now();
+                l.message.clone()
+            };
+            self.line(&message);
+        }
     }
 
     fn message(&self, msg: String) {
-        self.bar.set_message(msg);
+        if let Some(bar) = &self.bar {
+            bar.set_message(msg);
+        } else if let Some(lines) = &self.lines {
+            lines.borrow_mut().message = msg;
+            self.maybe_line();
+        }
     }
 
     /// Advances by `steps` steps of `cost` µs each (the bar counts nanoseconds).
     fn inc(&self, steps: u64, cost: f64) {
-        self.bar.inc((steps as f64 * cost * 1e3) as u64);
+        let n = (steps as f64 * cost * 1e3) as u64;
+        self.done.set(self.done.get() + n);
+        if let Some(bar) = &self.bar {
+            bar.inc(n);
+            let eta = self.eta.left(self.done.get(), self.eta.start.elapsed());
+            bar.set_prefix(eta.map_or_else(
+                || "eta  …".to_string(),
+                |d| format!("eta {}", duration_text(d)),
+            ));
+        } else {
+            self.maybe_line();
+        }
     }
 
     fn finish(&self) {
-        self.bar.finish_and_clear();
+        if let Some(bar) = &self.bar {
+            bar.finish_and_clear();
+        } else {
+            let _ = writeln!(
+                std::io::stderr(),
+                "{LINE_PREFIX}done in {}",
+                duration_text(self.eta.start.elapsed())
+            );
+        }
     }
 }
 
@@ -280,6 +409,8 @@ struct Outcome {
     report: Report,
     y: Vec<f64>,
     seconds: f64,
+    /// The steps a method that chooses its own took ([`Harness::own_steps`](super::methods::Harness::own_steps)).
+    own_steps: Option<usize>,
 }
 
 /// Integrates `problem` on [0, t_end] with a built integrator, calling `observer(t, y, H)`
@@ -341,6 +472,7 @@ fn run_one(
         report,
         y,
         seconds: start.elapsed().as_secs_f64(),
+        own_steps: stepper.0.own_steps(),
     })
 }
 
@@ -424,7 +556,8 @@ fn error_study(
                 Ok(o) => study.runs.push(ErrorRun {
                     method: m.name.to_string(),
                     h,
-                    steps: o.report.steps,
+                    steps: o.own_steps.unwrap_or(o.report.steps),
+                    own_steps: o.own_steps.is_some(),
                     error: max_diff(&o.y, &y_ref),
                     seconds: o.seconds,
                     sweeps: o.report.sweeps,
@@ -841,6 +974,7 @@ mod tests {
             method: "M".to_string(),
             h,
             steps: 1,
+            own_steps: false,
             error,
             seconds: 0.0,
             sweeps: 0,

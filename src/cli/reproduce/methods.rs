@@ -25,6 +25,7 @@ use ecr::baselines::krylov::Exprb43Krylov;
 use ecr::problems::{Duffing, Nls, Wind};
 use ecr_runtime::integrate::Integrator;
 use ecr_runtime::stepper::{EcStepper, SolverSettings, StepReport};
+use ecr_runtime::system::System;
 
 /// One of the paper's test problems, as the harness hands it to a method's constructor.
 // A handful of values, built once per study: the size difference does not matter.
@@ -82,14 +83,50 @@ macro_rules! on_system {
 }
 pub(crate) use on_system;
 
-/// A boxed integrator of any type.
-pub type BoxedIntegrator = Box<dyn Integrator>;
+/// An integrator as the harness drives it: one step of size h at a time, and, for a method
+/// that chooses its own steps inside each of them (DOP853), how many it took, so that the
+/// error studies plot it against the steps it used rather than against h.
+pub trait Harness: Integrator {
+    /// Steps chosen by the method itself so far; None for a method that steps with h.
+    fn own_steps(&self) -> Option<usize> {
+        None
+    }
+}
 
-/// Boxes a constructed integrator (helper for [`Method::build`]).
+/// A method that steps with h.
+struct WithH<I>(I);
+
+impl<I: Integrator> Integrator for WithH<I> {
+    fn step_size(&self) -> f64 {
+        self.0.step_size()
+    }
+    fn set_step_size(&mut self, h: f64) -> ecr_runtime::Result<()> {
+        self.0.set_step_size(h)
+    }
+    fn step_state(&mut self, y: &mut [f64]) -> ecr_runtime::Result<StepReport> {
+        self.0.step_state(y)
+    }
+    fn energy_of(&self, y: &[f64]) -> Option<f64> {
+        self.0.energy_of(y)
+    }
+}
+
+impl<I: Integrator> Harness for WithH<I> {}
+
+impl<S: System> Harness for Dop853Stepper<S> {
+    fn own_steps(&self) -> Option<usize> {
+        Some(self.stats().accepted)
+    }
+}
+
+/// A boxed integrator of any type.
+pub type BoxedIntegrator = Box<dyn Harness>;
+
+/// Boxes a constructed integrator that steps with h (helper for [`Method::build`]).
 pub fn boxed<I: Integrator + 'static>(
     integrator: ecr_runtime::Result<I>,
 ) -> ecr_runtime::Result<BoxedIntegrator> {
-    Ok(Box::new(integrator?))
+    Ok(Box::new(WithH(integrator?)))
 }
 
 /// A named method: how to build it for a problem and a step size.
@@ -160,9 +197,10 @@ pub fn methods() -> Vec<Method> {
         },
         Method {
             name: "DOP853",
-            about: "Dormand–Prince 8(5,3) (ode_solvers), adaptive inside each step h, \
-                    rtol = atol = 1e-12: what many users pick instead",
-            build: |p, h| on_system!(p, sys => boxed(Dop853Stepper::new(sys, h))),
+            about: "Dormand–Prince 8(5,3) (ode_solvers), adaptive inside each output step h, \
+                    rtol = atol = 1e-12: what many users pick instead. It chooses its own \
+                    steps, so the error studies plot it against the steps it took",
+            build: |p, h| on_system!(p, sys => Ok(Box::new(Dop853Stepper::new(sys, h)?) as BoxedIntegrator)),
         },
     ]
 }

@@ -30,12 +30,14 @@ use std::time::Instant;
                   status 2 before any work."
 )]
 pub struct ReproduceArgs {
-    /// Shrink the intervals (about T/100) so that everything runs in seconds.
+    /// Shrink the intervals (about T/100) so that everything runs in seconds; the output goes
+    /// to out/reproduce-quick unless --out says otherwise.
     #[arg(long)]
     quick: bool,
-    /// Output directory (created if missing, replaced whole by a complete run).
-    #[arg(long, default_value = "out/reproduce")]
-    out: PathBuf,
+    /// Output directory (created if missing, replaced whole by a complete run) [default:
+    /// out/reproduce, with --quick out/reproduce-quick].
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
     /// Replace --out even if it holds files that ecr did not write (a non-empty directory
     /// without the .ecr-output file that ecr puts into its output directories).
     #[arg(long)]
@@ -106,9 +108,27 @@ fn write_outputs(
     Ok(names)
 }
 
+/// The default output directories: a quick run never replaces a full run's files.
+const DEFAULT_OUT: &str = "out/reproduce";
+const DEFAULT_QUICK_OUT: &str = "out/reproduce-quick";
+
+impl ReproduceArgs {
+    /// `--out`, or the default of a full or a quick run.
+    fn out_dir(&self) -> PathBuf {
+        self.out.clone().unwrap_or_else(|| {
+            PathBuf::from(if self.quick {
+                DEFAULT_QUICK_OUT
+            } else {
+                DEFAULT_OUT
+            })
+        })
+    }
+}
+
 /// Runs `ecr reproduce`.
 pub fn run(args: &ReproduceArgs, out: &mut dyn Write) -> Result<(), UsageError> {
-    let staged = OutputDir::stage(&args.out, args.force, "reproduce")?;
+    let out_dir = args.out_dir();
+    let staged = OutputDir::stage(&out_dir, args.force, "reproduce")?;
     let config = Config::new(args.quick);
     let methods = methods::methods();
     let start = Instant::now();
@@ -122,7 +142,7 @@ pub fn run(args: &ReproduceArgs, out: &mut dyn Write) -> Result<(), UsageError> 
         if args.quick { " --quick" } else { "" },
         methods.len(),
         names.len(),
-        args.out.display(),
+        out_dir.display(),
         replaced.describe(),
         names.join(" ")
     )
@@ -130,7 +150,7 @@ pub fn run(args: &ReproduceArgs, out: &mut dyn Write) -> Result<(), UsageError> 
         UsageError(format!(
             "wrote {} files to {}, but cannot write this summary to standard output: {e}",
             names.len(),
-            args.out.display()
+            out_dir.display()
         ))
     })
 }

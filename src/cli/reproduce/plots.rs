@@ -93,14 +93,26 @@ impl Panel {
         )
     }
 
-    /// Pairs of curves (same abscissae) whose largest difference is below one pixel: the later
-    /// one hides the earlier where drawn alike. One note per pair.
+    /// Curves (same abscissae) that coincide to plotting precision: groups of curves linked by
+    /// pairs whose largest difference is below one pixel, so that the later ones hide the
+    /// earlier where drawn alike. One note per group.
     pub fn coincidences(&self) -> Vec<String> {
         let ys = self.y_range();
         let pixel = (ys.end - ys.start) / f64::from(PLOT_H);
-        let mut notes = Vec::new();
+        let n = self.curves.len();
+        // Union–find over the pairs within a pixel; per group the largest such difference.
+        let mut group: Vec<usize> = (0..n).collect();
+        fn root(group: &mut [usize], mut i: usize) -> usize {
+            while group[i] != i {
+                group[i] = group[group[i]];
+                i = group[i];
+            }
+            i
+        }
+        let mut linked = vec![false; n];
+        let mut pairs = Vec::new();
         for (i, a) in self.curves.iter().enumerate() {
-            for b in &self.curves[i + 1..] {
+            for (j, b) in self.curves.iter().enumerate().skip(i + 1) {
                 if a.points.len() < 2
                     || a.points.len() != b.points.len()
                     || a.points.iter().zip(&b.points).any(|(p, q)| p.0 != q.0)
@@ -112,23 +124,48 @@ impl Panel {
                     .iter()
                     .zip(&b.points)
                     .fold(0.0f64, |m, (p, q)| m.max((p.1 - q.1).abs()));
-                if d == 0.0 {
-                    notes.push(format!(
-                        "{} and {} are identical at every point (drawn with different line \
-                         pattern and marker).",
-                        a.label, b.label
-                    ));
-                } else if d <= pixel {
-                    notes.push(format!(
-                        "{} and {} coincide to plotting precision (largest difference {} \
-                         in {}, under one pixel).",
-                        a.label,
-                        b.label,
-                        sig(d),
-                        self.y_label
-                    ));
+                if d <= pixel {
+                    let (ri, rj) = (root(&mut group, i), root(&mut group, j));
+                    group[rj] = ri;
+                    linked[i] = true;
+                    linked[j] = true;
+                    pairs.push((i, j, d));
                 }
             }
+        }
+        let mut notes = Vec::new();
+        for r in 0..n {
+            let members: Vec<usize> = (0..n)
+                .filter(|&i| linked[i] && root(&mut group, i) == r)
+                .collect();
+            if members.len() < 2 {
+                continue;
+            }
+            let largest = pairs
+                .iter()
+                .filter(|p| root(&mut group, p.0) == r)
+                .fold(0.0f64, |m, p| m.max(p.2));
+            let labels: Vec<&str> = members
+                .iter()
+                .map(|&i| self.curves[i].label.as_str())
+                .collect();
+            let names = match labels.split_last() {
+                Some((last, rest)) if !rest.is_empty() => format!("{} and {last}", rest.join(", ")),
+                _ => labels.join(""),
+            };
+            notes.push(if largest == 0.0 {
+                format!(
+                    "{names} are identical at every point (drawn with different line pattern \
+                     and marker)."
+                )
+            } else {
+                format!(
+                    "{names} coincide to plotting precision (differences up to {} in {}, \
+                     under one pixel).",
+                    sig(largest),
+                    self.y_label
+                )
+            });
         }
         notes
     }
@@ -196,7 +233,7 @@ const STYLES: [(&str, RGBColor, Marker, bool); 22] = [
     ),
     ("EEI3s4", RGBColor(44, 160, 44), Marker::Diamond, false),
     ("DOP853", RGBColor(148, 103, 189), Marker::Cross, false),
-    ("reference", RGBColor(0, 0, 0), Marker::None, true),
+    ("reference", RGBColor(0, 0, 0), Marker::None, false),
     // Further names used by `ecr bench`.
     ("EC1P", RGBColor(140, 86, 75), Marker::Square, false),
     ("EC3P", RGBColor(227, 119, 194), Marker::OpenDiamond, false),
@@ -332,6 +369,9 @@ fn omitted_notes(
     notes
 }
 
+/// Global error against the number of steps: T/h for a method that steps with h, the steps
+/// it took for one that chooses its own (DOP853, labelled so), never against an h it did not
+/// use.
 fn error_panel(s: &ErrorStudy, title: String, names: &[&str]) -> Panel {
     let mut curves: Vec<Curve> = Vec::new();
     let mut zeros: Vec<String> = Vec::new();
@@ -340,10 +380,17 @@ fn error_panel(s: &ErrorStudy, title: String, names: &[&str]) -> Panel {
             zeros.push(format!("{} at h = {}", run.method, run.h));
             continue;
         };
-        let x = (s.t_end / run.h).log10();
+        let x = (run.steps.max(1) as f64).log10();
         match curves.iter_mut().find(|c| c.key == run.method) {
             Some(c) => c.points.push((x, y)),
-            None => curves.push(Curve::new(run.method.clone(), vec![(x, y)])),
+            None => {
+                let label = if run.own_steps {
+                    format!("{} (steps it chose)", run.method)
+                } else {
+                    run.method.clone()
+                };
+                curves.push(Curve::labelled(run.method.clone(), label, vec![(x, y)]));
+            }
         }
     }
     let mut notes = omitted_notes(&curves, names, &s.failures, &|m| {
@@ -362,22 +409,35 @@ fn error_panel(s: &ErrorStudy, title: String, names: &[&str]) -> Panel {
         }),
         Reference::Exact => None,
     };
-    let mut panel = Panel::new(title, "log10(T/h)", "log10(global error)", curves, true);
+    let mut panel = Panel::new(
+        title,
+        "log10(steps)  (T/h for a fixed step h)",
+        "log10(global error)",
+        curves,
+        true,
+    );
     panel.floor = floor;
     panel.notes = notes;
     panel.with_coincidence_notes()
 }
 
+/// The largest energy error so far, max over s ≤ t of |H(s) − H0|, against t: bounded or
+/// growing at a glance. (The error within a window oscillates over decades on the NLS; drawn
+/// window by window it hid the other curves.)
 fn energy_panel(s: &EnergyStudy, title: String, names: &[&str]) -> Panel {
     let curves: Vec<Curve> = s
         .runs
         .iter()
         .map(|run| {
+            let mut so_far = 0.0_f64;
             Curve::new(
                 run.method.clone(),
                 run.samples
                     .iter()
-                    .filter_map(|&(t, e)| log10(e).map(|y| (t, y)))
+                    .filter_map(|&(t, e)| {
+                        so_far = so_far.max(e);
+                        log10(so_far).map(|y| (t, y))
+                    })
                     .collect(),
             )
         })
@@ -385,13 +445,32 @@ fn energy_panel(s: &EnergyStudy, title: String, names: &[&str]) -> Panel {
     let notes = omitted_notes(&curves, names, &s.failures, &|m| {
         s.runs.iter().any(|r| r.method == m)
     });
-    let mut panel = Panel::new(title, "t", "log10 |H - H0|", curves, false);
+    let mut panel = Panel::new(
+        title,
+        "t",
+        "log10 max over [0, t] of |H - H0|",
+        curves,
+        false,
+    );
     panel.notes = notes;
     panel.with_coincidence_notes()
 }
 
+/// H(t) of every method and of the 'exact' run, which comes last so that it is drawn on
+/// top: a solid black line that the curves coinciding with it do not hide.
 fn lyapunov_panel(s: &LyapunovStudy, title: String, names: &[&str]) -> Panel {
-    let mut curves = vec![Curve::labelled(
+    let mut curves: Vec<Curve> = s
+        .runs
+        .iter()
+        .map(|run| {
+            Curve::labelled(
+                run.method.clone(),
+                format!("{} h = 1/{}", run.method, (1.0 / s.h).round()),
+                run.samples.clone(),
+            )
+        })
+        .collect();
+    curves.push(Curve::labelled(
         REFERENCE_KEY,
         format!(
             "{} h = 1/{} ('exact')",
@@ -399,14 +478,7 @@ fn lyapunov_panel(s: &LyapunovStudy, title: String, names: &[&str]) -> Panel {
             (1.0 / s.reference_h).round()
         ),
         s.reference.samples.clone(),
-    )];
-    curves.extend(s.runs.iter().map(|run| {
-        Curve::labelled(
-            run.method.clone(),
-            format!("{} h = 1/{}", run.method, (1.0 / s.h).round()),
-            run.samples.clone(),
-        )
-    }));
+    ));
     let notes = omitted_notes(&curves, names, &s.failures, &|_| false);
     let mut panel = Panel::new(title, "t", "H", curves, false);
     panel.notes = notes;
@@ -420,7 +492,7 @@ pub fn figures(r: &Results, names: &[&str]) -> Vec<Figure> {
         Figure {
             id: "p1-1".to_string(),
             caption: format!(
-                "Problem 1 (Duffing, k = 0.07): global error at T = {} against T/h",
+                "Problem 1 (Duffing, k = 0.07): global error at T = {} against the number of steps",
                 r.p1_errors[0].t_end
             ),
             panels: r
@@ -636,11 +708,14 @@ fn draw_panel<DB: DrawingBackend>(
         };
         draw_line(pa, vec![(xs.start, f.y), (xs.end, f.y)], s, 1).map_err(e)?;
     }
+    // Every line first, then every marker: a marker is never hidden under a later line.
     for c in &p.curves {
-        let s = style(&c.key);
         // Width 1 for dense curves: plotters' thick polylines grow spikes at sharp turns.
         let width = if p.markers { 2 } else { 1 };
-        draw_line(pa, c.points.clone(), s, width).map_err(e)?;
+        draw_line(pa, c.points.clone(), style(&c.key), width).map_err(e)?;
+    }
+    for c in &p.curves {
+        let s = style(&c.key);
         let n = c.points.len();
         let picked: Vec<(f64, f64)> = if p.markers {
             c.points.clone()
@@ -804,6 +879,36 @@ mod tests {
         let notes = p.coincidences();
         assert_eq!(notes.len(), 1, "{notes:?}");
         assert!(notes[0].contains("EC2P and EC2P-conv"), "{notes:?}");
+    }
+
+    /// Curves linked by coincidences make one note, not one per pair (p2-2's Lyapunov panel
+    /// had ten notes for five curves).
+    #[test]
+    fn coinciding_curves_make_one_note_per_group() {
+        let a: Vec<(f64, f64)> = (0..50)
+            .map(|i| (f64::from(i), 10.0 - 0.1 * f64::from(i)))
+            .collect();
+        let shifted = |d: f64| a.iter().map(|&(x, y)| (x, y + d)).collect::<Vec<_>>();
+        let p = Panel::new(
+            "t".into(),
+            "x",
+            "H",
+            vec![
+                Curve::new("EC2P", a.clone()),
+                Curve::new("EC2P-conv", shifted(1e-3)),
+                Curve::new("RKEPC2", shifted(3.0)),
+                Curve::new("DOP853", shifted(2e-3)),
+                Curve::new("reference", a.clone()),
+            ],
+            false,
+        );
+        let notes = p.coincidences();
+        assert_eq!(notes.len(), 1, "{notes:?}");
+        assert!(
+            notes[0].starts_with("EC2P, EC2P-conv, DOP853 and reference coincide"),
+            "{notes:?}"
+        );
+        assert!(notes[0].contains("up to 2.0e-3 in H"), "{notes:?}");
     }
 
     #[test]
