@@ -280,6 +280,7 @@ fn energy_is_bounded_over_a_million_chosen_steps() {
 
 /// A clock τ (τ' = 1) drives an oscillator u'' = −(1 + 400 e^{−((τ − 8)/0.4)²}) u whose
 /// frequency rises twentyfold around t = 8: smooth, but the error is made late in the span.
+#[allow(clippy::type_complexity)] // the closure's type cannot be named in an alias
 fn late_burst() -> (
     Semilinear<Dense, impl Fn(&[f64], &mut [f64]) + Clone>,
     Vec<f64>,

@@ -5,7 +5,6 @@
 
 use ecr::problems::Duffing;
 use ecr::runtime::solve::{Options, Problem, SolveError};
-use ecr::runtime::system::System;
 use proptest::prelude::*;
 use proptest::test_runner::{Config as ProptestConfig, RngSeed};
 use std::panic::{AssertUnwindSafe, catch_unwind};
