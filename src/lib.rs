@@ -85,6 +85,8 @@ pub struct ReadmeDoctests;
 #[cfg(feature = "baselines")]
 pub mod baselines;
 #[cfg(feature = "problems")]
+pub mod exact;
+#[cfg(feature = "problems")]
 pub mod problems;
 #[cfg(feature = "problems")]
 pub mod special;

@@ -179,6 +179,30 @@ impl Interval {
         let b = to_f64(&self.hi);
         (a.to_bits() == b.to_bits() || (a == 0.0 && b == 0.0)).then_some(a)
     }
+
+    /// The correctly rounded double-double `(hi, lo)` of every number in the interval, if they
+    /// all round alike: `hi` is the correctly rounded `f64` of the quantity `x` and `lo` the
+    /// correctly rounded `f64` of `x − hi`, so `|x − (hi + lo)| ≤ ulp(lo)/2` (about `2⁻¹⁰⁷ |x|`).
+    /// When the enclosure holds `hi` itself and is narrower than `2⁻¹⁶⁰ |hi|` (an exact `f64`
+    /// such as a weight ½, enclosed but not as a point), `lo = 0`: `hi` is then `x` to far
+    /// more than double-double precision. `None` if a rounding is not decided by the enclosure
+    /// (refine it).
+    pub fn round_dd(&self) -> Option<(f64, f64)> {
+        let hi = self.round_f64()?;
+        if !hi.is_finite() {
+            return None;
+        }
+        let h = Rat::from_float(hi).expect("finite f64");
+        let rest = Interval {
+            lo: &self.lo - &h,
+            hi: &self.hi - &h,
+        };
+        if let Some(lo) = rest.round_f64() {
+            return Some((hi, lo));
+        }
+        let bound = h.abs() / Rat::from_integer(BigInt::one() << 160usize);
+        (rest.contains(&Rat::zero()) && rest.width() <= bound).then_some((hi, 0.0))
+    }
 }
 
 /// A dyadic rational m / 2^e.

@@ -164,6 +164,7 @@ pub mod error;
 pub mod integrate;
 pub mod operator;
 pub mod phi;
+pub mod precision;
 pub mod second_order;
 pub mod solve;
 pub mod stepper;

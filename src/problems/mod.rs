@@ -13,8 +13,15 @@
 //!   functions ([`Duffing::exact`]).
 //! * [`Wind`] — Problem 2, the averaged system in wind-induced oscillation, conservative
 //!   ([`Wind::conservative`]) and dissipative ([`Wind::dissipative`]).
+//! * [`HenonHeiles`] — the Hénon–Heiles system (two oscillators, cubic coupling; chaotic at
+//!   the default energy 1/8).
 //! * [`Nls`] — Problem 3, the cubic nonlinear Schrödinger equation, semi-discretised by the
 //!   Fourier pseudospectral method; [`Nls2d`] is its 2D analogue (for scaling studies).
+//!
+//! [`Duffing`], [`Wind`] and [`HenonHeiles`] also implement
+//! [`GenericSystem`](ecr_runtime::precision::GenericSystem) for every
+//! [`Real`](ecr_runtime::precision::Real) scalar: they run in double-double precision with
+//! [`GenericStepper`](ecr_runtime::precision::GenericStepper).
 //!
 //! Each type offers the same inherent methods, and implements [`TestProblem`] for code that runs
 //! one harness over all of them. The nonlinearity, the gradient and the energies work on slices
@@ -36,16 +43,21 @@ use nalgebra::DMatrix;
 
 mod duffing;
 mod fpu;
+mod henon_heiles;
 mod nls;
 mod nls2d;
+mod precise;
 mod systems;
 mod wind;
 
 pub use duffing::Duffing;
 pub use fpu::Fpu;
+pub use henon_heiles::HenonHeiles;
 pub use nls::Nls;
 pub use nls2d::{Nls2d, Nls2dSystem};
-pub use systems::{DuffingSystem, NlsDenseSystem, NlsSystem, ProblemSystem, WindSystem};
+pub use systems::{
+    DuffingSystem, HenonHeilesSystem, NlsDenseSystem, NlsSystem, ProblemSystem, WindSystem,
+};
 pub use wind::Wind;
 
 /// A problem `y' = Q∇H(y) = Ay + g(y)` with `H(y) = ½yᵀMy + V(y)`, `A = QM`, `g = Q∇V`

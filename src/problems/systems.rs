@@ -20,7 +20,7 @@
 //! # Ok::<(), ecr_runtime::Error>(())
 //! ```
 
-use super::{Duffing, Fpu, Nls, TestProblem, Wind};
+use super::{Duffing, Fpu, HenonHeiles, Nls, TestProblem, Wind};
 use ecr_runtime::operator::{Circulant, Dense, LinearOperator, SkewPair};
 use ecr_runtime::second_order::{Omega, SecondOrderSystem};
 use ecr_runtime::storage::ensure_allocatable;
@@ -40,6 +40,8 @@ pub struct ProblemSystem<P, Op> {
 pub type DuffingSystem = ProblemSystem<Duffing, Dense>;
 /// Wind-induced oscillation (Problem 2) with a dense linear part.
 pub type WindSystem = ProblemSystem<Wind, Dense>;
+/// [`HenonHeiles`] with its linear part as a dense matrix.
+pub type HenonHeilesSystem = ProblemSystem<HenonHeiles, Dense>;
 /// Cubic NLS (Problem 3) with the linear part as a skew pair of the circulant D₂ (FFT).
 pub type NlsSystem = ProblemSystem<Nls, SkewPair<Circulant>>;
 /// Cubic NLS (Problem 3) with a dense linear part (O(N²) per application; for comparisons).
@@ -184,6 +186,17 @@ impl Duffing {
     /// # Errors
     /// [`Error::NonFinite`] if ω² + k² overflows.
     pub fn system(&self) -> Result<DuffingSystem> {
+        ProblemSystem::dense(self.clone())
+    }
+}
+
+impl HenonHeiles {
+    /// This problem as a [`System`] with A = [`linear_matrix`](HenonHeiles::linear_matrix)
+    /// dense.
+    ///
+    /// # Errors
+    /// None in practice (the entries are 0 and ±1); the signature is that of the others.
+    pub fn system(&self) -> Result<HenonHeilesSystem> {
         ProblemSystem::dense(self.clone())
     }
 }

@@ -34,6 +34,9 @@ pub struct Wind {
     radius: f64,
     cos_theta: f64,
     sin_theta: f64,
+    /// `δ = π/2 − θ` when the problem was made from it (its trigonometric values are then
+    /// `cos θ = sin δ`, `sin θ = cos δ`, also in other precisions).
+    deviation: Option<f64>,
 }
 
 impl Default for Wind {
@@ -88,7 +91,9 @@ impl Wind {
             )));
         }
         let (cos_theta, sin_theta) = delta.sin_cos();
-        Self::with_trig(FRAC_PI_2 - delta, radius, cos_theta, sin_theta)
+        let mut wind = Self::with_trig(FRAC_PI_2 - delta, radius, cos_theta, sin_theta)?;
+        wind.deviation = Some(delta);
+        Ok(wind)
     }
 
     fn with_trig(theta: f64, radius: f64, cos_theta: f64, sin_theta: f64) -> Result<Self> {
@@ -105,6 +110,7 @@ impl Wind {
             radius,
             cos_theta,
             sin_theta,
+            deviation: None,
         })
     }
 
@@ -115,6 +121,7 @@ impl Wind {
             radius: 20.0,
             cos_theta: 0.0,
             sin_theta: 1.0,
+            deviation: None,
         }
     }
 
@@ -141,6 +148,11 @@ impl Wind {
     /// The detuning parameter `λ = r sin θ`.
     pub fn lambda(&self) -> f64 {
         self.radius * self.sin_theta
+    }
+
+    /// `δ = π/2 − θ`, if the problem was made by [`Wind::from_deviation`].
+    pub fn deviation(&self) -> Option<f64> {
+        self.deviation
     }
 
     /// Whether `cos θ = 0` exactly, i.e. `Q` is skew-symmetric and `H` a first integral.

@@ -9,7 +9,8 @@
 //! doubles, so the reduced argument is accurate to ~ε² for `|k| ≲ 2⁴⁰`, and then evaluate
 //! Taylor polynomials in double-double arithmetic.
 
-use super::dense::{two_prod, two_sum};
+use super::dense::two_prod;
+pub(crate) use crate::precision::DoubleDouble as Dd;
 
 /// `ln 2` as the sum of three doubles (generated with 300-bit mpmath).
 const LN2: [f64; 3] = [
@@ -24,76 +25,6 @@ const PI_2: [f64; 3] = [
     6.123233995736766e-17,
     -1.4973849048591698e-33,
 ];
-
-/// A double-double number `hi + lo`, `|lo| ≤ ulp(hi)/2`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) struct Dd {
-    pub hi: f64,
-    pub lo: f64,
-}
-
-impl Dd {
-    pub(crate) const fn new(hi: f64) -> Self {
-        Dd { hi, lo: 0.0 }
-    }
-
-    /// Normalises `a + b` with `|a| ≥ |b|` (or `a = 0`).
-    #[inline]
-    fn fast(a: f64, b: f64) -> Self {
-        let s = a + b;
-        Dd {
-            hi: s,
-            lo: b - (s - a),
-        }
-    }
-
-    #[inline]
-    pub(crate) fn add(self, o: Dd) -> Dd {
-        let (s, e) = two_sum(self.hi, o.hi);
-        let (t, f) = two_sum(self.lo, o.lo);
-        let r = Dd::fast(s, e + t);
-        Dd::fast(r.hi, r.lo + f)
-    }
-
-    #[inline]
-    pub(crate) fn neg(self) -> Dd {
-        Dd {
-            hi: -self.hi,
-            lo: -self.lo,
-        }
-    }
-
-    #[inline]
-    pub(crate) fn sub(self, o: Dd) -> Dd {
-        self.add(o.neg())
-    }
-
-    #[inline]
-    pub(crate) fn mul(self, o: Dd) -> Dd {
-        let (p, e) = two_prod(self.hi, o.hi);
-        Dd::fast(p, e + (self.hi * o.lo + self.lo * o.hi))
-    }
-
-    /// `self / k` for an f64 `k` (exact-remainder division of the high part).
-    #[inline]
-    fn div_f64(self, k: f64) -> Dd {
-        let q = self.hi / k;
-        let rem = (-q).mul_add(k, self.hi);
-        Dd::fast(q, (rem + self.lo) / k)
-    }
-
-    /// `self · 2^e` (exact unless the result leaves the normal range).
-    fn ldexp(self, e: i32) -> Dd {
-        // Two factors so that 2^e itself stays finite for e up to ±2046.
-        let a = (e / 2) as f64;
-        let b = (e - e / 2) as f64;
-        let (fa, fb) = (a.exp2(), b.exp2());
-        Dd {
-            hi: self.hi * fa * fb,
-            lo: self.lo * fa * fb,
-        }
-    }
-}
 
 /// `x − k c` for the triple-double constant `c`, in double-double; `k` an integer-valued f64 with
 /// `|x − k c₀| ≤ |x|` (Sterbenz applies to `x − k c₀` in the callers' ranges).
