@@ -704,3 +704,137 @@ fn the_error_floor_is_the_same_for_every_h() {
         "error floor from {best:e} to {worst:e} across h: {errors:?}"
     );
 }
+
+/// The digits of every JSON number in `text` that follows `"key": [` (an array of numbers).
+fn array_numbers<'a>(text: &'a str, key: &str) -> Vec<&'a str> {
+    let start = text.find(&format!("\"{key}\": [")).expect("the key") + key.len() + 5;
+    let end = start + text[start..].find(']').expect("the array's end");
+    text[start..end]
+        .split(',')
+        .map(str::trim)
+        .filter(|s| !s.is_empty())
+        .collect()
+}
+
+/// Significant digits of a number written `d.ddd…e±x`.
+fn significant_digits(number: &str) -> usize {
+    let mantissa = number.trim_start_matches('-').split('e').next().unwrap();
+    mantissa.chars().filter(char::is_ascii_digit).count()
+}
+
+#[test]
+fn double_double_duffing_prints_34_digits_and_meets_the_exact_solution() {
+    let (code, out, err) = ecr(&[
+        "run",
+        "--problem",
+        "duffing",
+        "--r",
+        "8",
+        "--h",
+        "0.05",
+        "--t-end",
+        "10",
+        "--precision",
+        "double-double",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["precision"], "double-double");
+    assert_eq!(v["steps"], 200);
+    let ys = array_numbers(&out, "y");
+    assert_eq!(ys.len(), 2);
+    for y in &ys {
+        assert!(significant_digits(y) >= 32, "{y}");
+    }
+    // 2.9e−28 measured (docs/method.md#measured-orders); f64 cannot go below ~1e−15.
+    let e = v["global_error"].as_f64().unwrap();
+    assert!(e < 1e-26, "global error {e:e}");
+    assert!(v["max_energy_error"].as_f64().unwrap() < 1e-25);
+    // The state agrees with the f64 run of the same method to f64 accuracy.
+    let f = run_ok(&[
+        "--problem",
+        "duffing",
+        "--r",
+        "8",
+        "--h",
+        "0.05",
+        "--t-end",
+        "10",
+    ]);
+    for (a, b) in ys.iter().zip(f["y"].as_array().unwrap()) {
+        let (a, b) = (a.parse::<f64>().unwrap(), b.as_f64().unwrap());
+        assert!((a - b).abs() < 1e-13, "{a} vs {b}");
+    }
+}
+
+#[test]
+fn double_double_runs_wind_and_henon_heiles_like_f64() {
+    for problem in ["wind", "wind-dissipative", "henon-heiles"] {
+        let args = [
+            "--problem",
+            problem,
+            "--r",
+            "4",
+            "--h",
+            "0.01",
+            "--t-end",
+            "1",
+        ];
+        let f = run_ok(&args);
+        let mut dd_args = args.to_vec();
+        dd_args.extend(["--precision", "double-double"]);
+        let d = run_ok(&dd_args);
+        for (a, b) in d["y"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .zip(f["y"].as_array().unwrap())
+        {
+            let (a, b) = (a.as_f64().unwrap(), b.as_f64().unwrap());
+            assert!(
+                (a - b).abs() <= 1e-12 * b.abs().max(1.0),
+                "{problem}: {a} vs {b}"
+            );
+        }
+        assert_eq!(d["steps"], 100);
+    }
+}
+
+#[test]
+fn double_double_refuses_what_it_does_not_run() {
+    for (args, want) in [
+        (
+            vec!["--problem", "nls", "--r", "2", "--h", "0.1"],
+            "not --problem nls",
+        ),
+        (
+            vec!["--problem", "fpu", "--r", "2", "--h", "0.1"],
+            "not --problem fpu",
+        ),
+        (vec!["--problem", "duffing", "--tol", "1e-8"], "--tol"),
+        (
+            vec!["--problem", "duffing", "--r", "2", "--h", "0.1", "--newton"],
+            "--newton",
+        ),
+        (
+            vec![
+                "--problem",
+                "duffing",
+                "--r",
+                "2",
+                "--h",
+                "0.1",
+                "--paper-solver",
+            ],
+            "--paper-solver",
+        ),
+    ] {
+        let mut full = vec!["run", "--t-end", "1", "--precision", "double-double"];
+        full.extend(args);
+        let (code, out, err) = ecr(&full);
+        assert_eq!(code, 2, "{full:?}");
+        assert!(out.is_empty());
+        assert!(err.starts_with("error: ") && err.contains(want), "{err}");
+        assert_eq!(err.lines().count(), 1, "{err}");
+    }
+}

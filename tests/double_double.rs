@@ -160,3 +160,179 @@ fn generic_f64_is_the_fast_steppers_method() {
         200,
     );
 }
+
+/// Least-squares slope of `e` against `n`, and the largest `|e|`.
+fn trend(samples: &[(f64, f64)]) -> (f64, f64) {
+    let k = samples.len() as f64;
+    let (sn, se) = samples
+        .iter()
+        .fold((0.0, 0.0), |(a, b), &(n, e)| (a + n, b + e));
+    let (mn, me) = (sn / k, se / k);
+    let (num, den) = samples.iter().fold((0.0, 0.0), |(a, b), &(n, e)| {
+        (a + (n - mn) * (e - me), b + (n - mn) * (n - mn))
+    });
+    let max = samples.iter().fold(0.0f64, |m, &(_, e)| m.max(e.abs()));
+    (num / den, max)
+}
+
+/// The energy drift of ECrP (r = 8, h = 0.05) on Duffing ω = 5, k = 0.07 over 10⁶ steps
+/// (T = 5·10⁴) in double-double, beside the same run of the fast f64 stepper: the
+/// least-squares slope of the relative energy error per step (sampled every 100 steps) and its
+/// largest value. About a minute in release mode:
+/// `cargo test --release --test double_double -- --ignored --nocapture energy_drift`.
+#[test]
+#[ignore = "a million steps: about a minute in release mode; the figures are in docs/method.md"]
+fn energy_drift_over_a_million_steps() {
+    let steps = 1_000_000usize;
+    let p = Duffing::new(5.0, 0.07).unwrap();
+    let h0 = 12.5; // ½ω², exact
+    let h = Dd::from(0.05);
+    let mut st = GenericStepper::new(p.clone(), 8, h).unwrap();
+    let mut y = [Dd::from(0.0), Dd::from(5.0)];
+    let mut samples = Vec::new();
+    let t_end = Dd::from(0.05) * Dd::from(steps as f64);
+    let start = std::time::Instant::now();
+    st.integrate(Dd::from(0.0), t_end, &mut y, |n, _, y| {
+        if n % 100 == 0 {
+            let e = GenericSystem::<Dd>::energy(&p, y).unwrap() - Dd::from(h0);
+            samples.push((n as f64, (e / Dd::from(h0)).hi()));
+        }
+    })
+    .unwrap();
+    let dd_secs = start.elapsed().as_secs_f64();
+    let (slope, max) = trend(&samples);
+    let err = duffing_error_dd(&p, t_end, &y);
+    println!(
+        "double-double: drift {slope:.2e} per step, max |ΔH|/H {max:.2e}, global error at T {err:.2e}, {dd_secs:.1} s"
+    );
+    // The fast f64 stepper, same method and step.
+    let system = p.system().unwrap();
+    let mut f = EcStepper::new(&system, 8, 0.05).unwrap();
+    let mut yf = p.initial_value();
+    let mut samples_f = Vec::new();
+    for n in 1..=steps {
+        f.step(&mut yf).unwrap();
+        if n % 100 == 0 {
+            samples_f.push((n as f64, (p.energy(&yf) - h0) / h0));
+        }
+    }
+    let (slope_f, max_f) = trend(&samples_f);
+    println!("f64:           drift {slope_f:.2e} per step, max |ΔH|/H {max_f:.2e}");
+    // Double-double's drift per step is far below f64's unit round-off per step.
+    assert!(slope.abs() < 1e-25, "drift {slope:e} per step");
+}
+
+/// A diagonal system, y' = diag(λ) y + g(y) with a coupling g = ½(y_{i+1} − y_i)²: stiff
+/// (λ from −2000 to −0.1), the generic stepper's diagonal kernels in f64 against the fast
+/// stepper's `Diagonal` operator; mild (λ from −4 to −0.1), the order 6 of r = 3 in
+/// double-double.
+struct StiffDiagonal {
+    lambda: Vec<f64>,
+}
+
+impl<S: ecr_runtime::precision::Real> GenericSystem<S> for StiffDiagonal {
+    fn dim(&self) -> usize {
+        self.lambda.len()
+    }
+    fn linear_part(&self) -> ecr_runtime::precision::LinearPart<S> {
+        ecr_runtime::precision::LinearPart::Diagonal(
+            self.lambda.iter().map(|&l| S::from_f64(l)).collect(),
+        )
+    }
+    fn nonlinear(&self, y: &[S], out: &mut [S]) {
+        let d = y.len();
+        for i in 0..d {
+            let diff = y[(i + 1) % d] - y[i];
+            out[i] = S::from_f64(0.5) * diff * diff;
+        }
+    }
+}
+
+fn stiff_g(y: &[f64], out: &mut [f64]) {
+    let d = y.len();
+    for i in 0..d {
+        let diff = y[(i + 1) % d] - y[i];
+        out[i] = 0.5 * diff * diff;
+    }
+}
+
+#[test]
+fn diagonal_linear_parts_in_both_precisions() {
+    use ecr_runtime::operator::Diagonal;
+    use ecr_runtime::system::Semilinear;
+    let lambda = vec![-2000.0, -300.0, -40.0, -5.0, -0.1];
+    let y0: Vec<f64> = vec![1.0, -0.5, 0.25, 0.8, -1.0];
+    let sys = StiffDiagonal {
+        lambda: lambda.clone(),
+    };
+    // f64: the generic stepper is the fast one.
+    let fast = Semilinear::new(Diagonal::new(lambda.clone()).unwrap(), stiff_g);
+    for r in [2, 4] {
+        let mut g = GenericStepper::new(&sys, r, 0.05).unwrap();
+        let mut yg = y0.clone();
+        g.integrate(0.0, 2.0, &mut yg, |_, _, _| {}).unwrap();
+        let mut f = EcStepper::new(&fast, r, 0.05).unwrap();
+        let mut yf = y0.clone();
+        for _ in 0..40 {
+            f.step(&mut yf).unwrap();
+        }
+        for (a, b) in yg.iter().zip(&yf) {
+            assert!((a - b).abs() <= 1e-13, "r = {r}: {a} vs {b}");
+        }
+    }
+    // Double-double: the order, on the non-stiff part of the spectrum (with |hλ| up to 100 the
+    // error of any collocation method is in its stiff regime, where the stage order r + 1
+    // rules: the runs above behave so in f64 and double-double alike).
+    let mild = StiffDiagonal {
+        lambda: vec![-4.0, -2.0, -1.0, -0.5, -0.1],
+    };
+    let run = |r: usize, n: usize| -> Vec<Dd> {
+        let mut st = GenericStepper::new(&mild, r, Dd::from(2.0) / Dd::from(n as f64)).unwrap();
+        // A smaller start: from y0 itself the quadratic coupling blows up before t = 2 (the
+        // stepper then stops with an overflow error).
+        let mut y: Vec<Dd> = y0.iter().map(|&v| Dd::from(0.2 * v)).collect();
+        st.integrate(Dd::from(0.0), Dd::from(2.0), &mut y, |_, _, _| {})
+            .unwrap();
+        y
+    };
+    let reference = run(3, 640);
+    let err = |y: &[Dd]| -> f64 {
+        y.iter()
+            .zip(&reference)
+            .map(|(a, b)| (*a - *b).abs().hi())
+            .fold(0.0, f64::max)
+    };
+    let (e1, e2) = (err(&run(3, 20)), err(&run(3, 40)));
+    let slope = (e1 / e2).log2();
+    println!("diagonal, r = 3: errors {e1:.2e}, {e2:.2e}, slope {slope:.2}");
+    assert!((slope - 6.0).abs() <= 0.5, "slope {slope}");
+}
+
+/// A solution that blows up: the stepper stops with an error naming the step, and the state
+/// is the last finite one (no NaN handed back).
+#[test]
+fn blow_up_is_an_error_not_a_nan() {
+    let sys = StiffDiagonal {
+        lambda: vec![-4.0, -2.0, -1.0, -0.5, -0.1],
+    };
+    let mut st = GenericStepper::new(&sys, 3, Dd::from(1.0) / Dd::from(320.0)).unwrap();
+    let mut y: Vec<Dd> = [1.0, -0.5, 0.25, 0.8, -1.0]
+        .iter()
+        .map(|&v| Dd::from(v))
+        .collect();
+    let err = st
+        .integrate(Dd::from(0.0), Dd::from(2.0), &mut y, |_, _, _| {})
+        .unwrap_err();
+    let ecr_runtime::Error::AtStep { step, source, .. } = &err else {
+        panic!("unexpected {err:?}");
+    };
+    assert!(*step > 1 && *step < 640, "{err}");
+    assert!(
+        matches!(
+            **source,
+            ecr_runtime::Error::Overflow(_) | ecr_runtime::Error::NoConvergence { .. }
+        ),
+        "{err}"
+    );
+    assert!(y.iter().all(|v| v.is_finite()));
+}

@@ -2,7 +2,7 @@
 
 use super::{UsageError, memory, progress};
 use clap::{Args, ValueEnum};
-use ecr::problems::{Duffing, Fpu, Nls, Wind};
+use ecr::problems::{Duffing, Fpu, HenonHeiles, Nls, Wind};
 use ecr_runtime::integrate::{IntegrateOptions, Integrator, Report, StepPlan, integrate};
 use ecr_runtime::second_order::TcStepper;
 use ecr_runtime::solve::{Options, Problem, Solution, SolveError};
@@ -13,6 +13,8 @@ use std::io::{IsTerminal, Write};
 use std::sync::Once;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
+
+mod precise;
 
 /// Refuse runs with more steps than this (h far too small for the interval).
 const MAX_STEPS: f64 = 1e9;
@@ -29,6 +31,9 @@ enum ProblemArg {
     Nls,
     /// Fermi–Pasta–Ulam chain with stiff springs (Hairer–Lubich–Wanner), q'' + Ωq = −∇U(q).
     Fpu,
+    /// Hénon–Heiles: two oscillators with a cubic coupling, from (q, p) = (0, 0, 1/2, 0) (energy
+    /// 1/8, chaotic).
+    HenonHeiles,
 }
 
 impl ProblemArg {
@@ -39,8 +44,18 @@ impl ProblemArg {
             ProblemArg::WindDissipative => "wind-dissipative",
             ProblemArg::Nls => "nls",
             ProblemArg::Fpu => "fpu",
+            ProblemArg::HenonHeiles => "henon-heiles",
         }
     }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, ValueEnum)]
+enum PrecisionArg {
+    /// f64 (the fast steppers).
+    Double,
+    /// Double-double, about 32 significant digits (ECrP; duffing, wind, wind-dissipative,
+    /// henon-heiles; fixed step).
+    DoubleDouble,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, ValueEnum)]
@@ -143,6 +158,13 @@ pub struct RunArgs {
     /// instead of fixed-point sweeps: for stiff nonlinearities. ECrP only.
     #[arg(long)]
     newton: bool,
+    /// Arithmetic: double (f64) or double-double (about 32 significant digits: the state is
+    /// printed with 34, the Duffing error measured against its exact solution at 256 bits).
+    /// Double-double runs ECrP with a fixed step on duffing, wind, wind-dissipative and
+    /// henon-heiles; a step that does not divide --t-end is rounded to one that does when
+    /// they differ by at most 1e−9 relative (else the last step is shortened).
+    #[arg(long, value_enum, default_value = "double")]
+    precision: PrecisionArg,
 }
 
 impl RunArgs {
@@ -473,6 +495,9 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), UsageError> {
     );
     memory::check(&what, memory_estimate(args))?;
     report_interrupts();
+    if args.precision == PrecisionArg::DoubleDouble {
+        return precise::run(args, out);
+    }
     if let Some(tol) = args.tol {
         return run_tolerance(args, tol, out);
     }
@@ -516,6 +541,16 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), UsageError> {
                 "conservative": problem.is_conservative(),
             });
             (o, params, None)
+        }
+        ProblemArg::HenonHeiles => {
+            let problem = HenonHeiles::default();
+            let system = problem.system().map_err(usage)?;
+            let o = run_system(
+                EcStepper::with_nodes(system, args.r(), s, args.h(), settings),
+                problem.initial_value(),
+                args,
+            )?;
+            (o, json!({ "y0": problem.initial_value() }), None)
         }
         ProblemArg::Nls => {
             let problem = Nls::new(args.n.unwrap_or(128)).map_err(usage)?;
@@ -719,6 +754,25 @@ fn run_tolerance(args: &RunArgs, tol: f64, out: &mut dyn Write) -> Result<(), Us
                 "conservative": problem.is_conservative(),
             });
             (solved, params, reference)
+        }
+        ProblemArg::HenonHeiles => {
+            let problem = HenonHeiles::default();
+            let y0 = problem.initial_value();
+            let solved = solve_to(
+                problem.system().map_err(usage)?,
+                y0.clone(),
+                t_end,
+                tol,
+                args.r,
+            )?;
+            let reference = reference_of(solve_to(
+                problem.system().map_err(usage)?,
+                y0.clone(),
+                t_end,
+                reference_tol,
+                None,
+            ));
+            (solved, json!({ "y0": y0 }), reference)
         }
         ProblemArg::Nls => {
             let problem = Nls::new(args.n.unwrap_or(128)).map_err(usage)?;
