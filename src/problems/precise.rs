@@ -129,11 +129,11 @@ mod tests {
         p: &P,
         ys: &[Vec<f64>],
     ) {
-        let d = p.dim();
+        let d = TestProblem::dim(p);
         for y in ys {
             let mut g = vec![0.0; d];
             let mut gf = vec![0.0; d];
-            p.nonlinear(y, &mut g);
+            TestProblem::nonlinear(p, y, &mut g);
             GenericSystem::<f64>::nonlinear(p, y, &mut gf);
             let yd: Vec<DoubleDouble> = y.iter().map(|&v| v.into()).collect();
             let mut gd = vec![DoubleDouble::default(); d];
@@ -143,7 +143,7 @@ mod tests {
                 assert!((g[i] - gf[i]).abs() <= 4e-16 * scale, "g[{i}]");
                 assert!((g[i] - gd[i].to_f64()).abs() <= 4e-16 * scale, "g[{i}] dd");
             }
-            let e = p.energy(y);
+            let e = TestProblem::energy(p, y);
             let ef = GenericSystem::<f64>::energy(p, y).unwrap();
             let ed = GenericSystem::<DoubleDouble>::energy(p, &yd).unwrap();
             assert!((e - ef).abs() <= 1e-15 * e.abs().max(1.0));

@@ -92,7 +92,8 @@ impl Wind {
         }
         let (cos_theta, sin_theta) = delta.sin_cos();
         let mut wind = Self::with_trig(FRAC_PI_2 - delta, radius, cos_theta, sin_theta)?;
-        wind.deviation = Some(delta);
+        // δ = 0 is θ = π/2 exactly: the conservative problem, whichever way it was made.
+        wind.deviation = (delta != 0.0).then_some(delta);
         Ok(wind)
     }
 

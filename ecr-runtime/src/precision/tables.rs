@@ -28,7 +28,7 @@ pub struct GenericTables<S> {
     /// The integers c_{jk} of the kernels Ψⱼ(τ, Z) = Σ_{k≤j} c_{jk} τᵏ φ_{k+1}(τZ), row-major
     /// r × r (zero above the diagonal).
     pub c: Vec<S>,
-    /// 1/n! for n = 0..=[`MAX_FACTORIAL`].
+    /// 1/n! for n = 0..=48.
     pub inv_factorial: Vec<S>,
 }
 
