@@ -160,6 +160,7 @@
 #![deny(missing_docs)]
 
 mod concurrent;
+mod double_double;
 pub mod error;
 pub mod integrate;
 pub mod operator;

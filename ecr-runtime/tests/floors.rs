@@ -10,10 +10,10 @@ use std::path::Path;
 
 /// Bottom up: a module may import the modules of the floors before its own.
 const FLOORS: &[&[&str]] = &[
-    &["error", "concurrent"],
+    &["error", "concurrent", "double_double"],
     &["storage", "tables"],
     &["phi"],
-    &["operator"],
+    &["operator", "precision"],
     &["system"],
     &["stepper"],
     &["second_order"],

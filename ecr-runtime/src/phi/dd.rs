@@ -9,8 +9,8 @@
 //! doubles, so the reduced argument is accurate to ~ε² for `|k| ≲ 2⁴⁰`, and then evaluate
 //! Taylor polynomials in double-double arithmetic.
 
-use super::dense::two_prod;
-pub(crate) use crate::precision::DoubleDouble as Dd;
+pub(crate) use crate::double_double::DoubleDouble as Dd;
+use crate::double_double::two_prod;
 
 /// `ln 2` as the sum of three doubles (generated with 300-bit mpmath).
 const LN2: [f64; 3] = [

@@ -5,6 +5,7 @@ use nalgebra::{DMatrix, SMatrix};
 
 use super::factorial::inv_factorial;
 use super::scalar::{phi_diagonal, phi_real};
+use crate::double_double::{two_prod, two_sum};
 use crate::error::{Error, Result};
 
 /// Scaling target: `‖2^{−s} A‖₁ ≤ THETA`.
@@ -293,21 +294,6 @@ pub fn phi_symmetric(a: &DMatrix<f64>, p: usize) -> Result<Vec<DMatrix<f64>>> {
     }
     check_finite_result(&phis)?;
     Ok(phis)
-}
-
-/// `a + b = s + e` exactly.
-#[inline]
-pub(crate) fn two_sum(a: f64, b: f64) -> (f64, f64) {
-    let s = a + b;
-    let bb = s - a;
-    (s, (a - (s - bb)) + (b - bb))
-}
-
-/// `a b = p + e` exactly (fused multiply-add).
-#[inline]
-pub(crate) fn two_prod(a: f64, b: f64) -> (f64, f64) {
-    let p = a * b;
-    (p, a.mul_add(b, -p))
 }
 
 /// `C = A B` for double-double matrices `A = (ah, al)`, `B = (bh, bl)`: the `ah·bh` part by the

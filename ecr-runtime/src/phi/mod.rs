@@ -42,8 +42,8 @@ pub use factorial::{INV_FACTORIAL, inv_factorial};
 pub use legendre::LegendreKernels;
 pub use scalar::{phi_complex, phi_diagonal, phi_real, phi_trig};
 
+pub(crate) use crate::double_double::{two_prod, two_sum};
 pub(crate) use dd::{Dd, cexp_dd, cos_sin_dd, exp_dd};
 pub(crate) use dense::{
-    check_symmetric, expm_dd, expm_dd_split, symmetric_eigen, two_prod, two_sum,
-    validate as validate_matrix,
+    check_symmetric, expm_dd, expm_dd_split, symmetric_eigen, validate as validate_matrix,
 };

@@ -51,14 +51,13 @@
 //! and 1e−31 (`cos`, `sin`); their multiply–add costs the same within 10 %
 //! (`cargo test --release -p ecr-runtime --test double_double_crates -- --ignored --nocapture`).
 
-mod double_double;
 mod kernels;
 mod real;
 mod stepper;
 mod system;
 mod tables;
 
-pub use double_double::DoubleDouble;
+pub use crate::double_double::DoubleDouble;
 pub use real::Real;
 pub use stepper::{GENERIC_MAX_SWEEPS, GenericReport, GenericStepper};
 pub use system::{GenericSystem, LinearPart};

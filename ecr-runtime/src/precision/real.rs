@@ -1,6 +1,6 @@
 //! The scalar the extended-precision path is generic over.
 
-use super::DoubleDouble;
+use crate::double_double::DoubleDouble;
 use crate::phi::cos_sin_dd;
 use std::fmt::{Debug, Display};
 use std::ops::{Add, AddAssign, Div, Mul, MulAssign, Neg, Sub, SubAssign};

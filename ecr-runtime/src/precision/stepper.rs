@@ -16,7 +16,7 @@ const ROUNDOFF_FLOOR: f64 = 1024.0;
 
 /// ECrP (`docs/method.md#ecrp`) with r moments and s Gauss–Legendre points, in the scalar `S`:
 /// the method of [`crate::stepper::EcStepper`], written once for `f64` and
-/// [`super::DoubleDouble`].
+/// [`DoubleDouble`](super::DoubleDouble).
 ///
 /// Per step of size h, with the Legendre moments `Lⱼ = Σᵢ ℓ_{ji} g(Yᵢ)`:
 ///

@@ -1,20 +1,35 @@
-//! The double-double number `hi + lo` (about 106 significant bits), on the error-free
-//! transformations `two_sum` and `two_prod` (fused multiply-add).
+//! The error-free transformations `two_sum` and `two_prod` (fused multiply-add), and on them the
+//! double-double number `hi + lo` (about 106 significant bits). A module of the lowest floor:
+//! the φ-functions, the operators' long-run propagators and `precision` build on it.
 //!
 //! Addition is the accurate ("IEEE") form with both parts summed exactly, relative error about
 //! 2⁻¹⁰⁶; multiplication and division have relative errors below 2⁻¹⁰⁴ (division: three
 //! quotient digits, each corrected with the exact remainder). The elementary functions the
 //! runtime needs in this precision are `e^x` and `(cos θ, sin θ)` of an `f64` argument
-//! (`crate::phi`, relative error below 2e−31, tested against 320-bit references) and the square
+//! (`phi`, relative error below 2e−31, tested against 320-bit references) and the square
 //! root (one Newton step on the f64 root, relative error below 2⁻¹⁰⁴).
 
-use crate::phi::{two_prod, two_sum};
 use num_bigint::BigInt;
 use num_rational::BigRational;
 use num_traits::{Signed, Zero};
 use std::cmp::Ordering;
 use std::fmt;
 use std::ops::{Add, AddAssign, Div, Mul, MulAssign, Neg, Sub, SubAssign};
+
+/// `a + b = s + e` exactly.
+#[inline]
+pub(crate) fn two_sum(a: f64, b: f64) -> (f64, f64) {
+    let s = a + b;
+    let bb = s - a;
+    (s, (a - (s - bb)) + (b - bb))
+}
+
+/// `a b = p + e` exactly (fused multiply-add).
+#[inline]
+pub(crate) fn two_prod(a: f64, b: f64) -> (f64, f64) {
+    let p = a * b;
+    (p, a.mul_add(b, -p))
+}
 
 /// A double-double number: the unevaluated sum `hi + lo` of two `f64` with
 /// `|lo| ≤ ulp(hi)/2`, about 32 significant decimal digits.
