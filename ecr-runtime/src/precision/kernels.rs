@@ -206,7 +206,9 @@ pub(crate) fn kernels_at<S: Real>(
 }
 
 /// What a step of size h applies: per node the propagator `e^{cᵢhA}` and the stage kernels
-/// `h cᵢ (2j+1) Ψⱼ(cᵢ, hA)`; for the step's end `e^{hA}` and `h (2j+1) Ψⱼ(1, hA)`.
+/// `h cᵢ (2j+1) Ψⱼ(cᵢ, hA)`; for the step's end `e^{hA}` and `h (2j+1) Ψⱼ(1, hA)`; for the
+/// predictor the same at `τ = 1 + cᵢ`: the previous step's continuous solution
+/// `u(τ) = e^{τhA} y₀ + τh Σⱼ (2j+1) Ψⱼ(τ, hA) Lⱼ` at the next step's nodes.
 #[derive(Clone, Debug)]
 pub(crate) struct StepMaps<S> {
     pub(crate) stage_propagators: Vec<Map<S>>,
@@ -214,32 +216,44 @@ pub(crate) struct StepMaps<S> {
     pub(crate) stage_kernels: Vec<Map<S>>,
     pub(crate) propagator: Map<S>,
     pub(crate) kernels: Vec<Map<S>>,
+    pub(crate) predictor_propagators: Vec<Map<S>>,
+    /// Row-major s × r.
+    pub(crate) predictor_kernels: Vec<Map<S>>,
+}
+
+/// `e^{τhA}` and `τh (2j+1) Ψⱼ(τ, hA)` for each τ of `taus`.
+fn continuous_maps<S: Real>(
+    linear: &LinearPart<S>,
+    h: S,
+    taus: impl Iterator<Item = S>,
+    tables: &GenericTables<S>,
+) -> (Vec<Map<S>>, Vec<Map<S>>) {
+    let mut propagators = Vec::new();
+    let mut kernels = Vec::new();
+    for tau in taus {
+        let (e, psis) = kernels_at(linear, h, tau, tables);
+        propagators.push(e);
+        for (j, k) in psis.iter().enumerate() {
+            kernels.push(k.scaled(h * tau * S::from_f64((2 * j + 1) as f64)));
+        }
+    }
+    (propagators, kernels)
 }
 
 impl<S: Real> StepMaps<S> {
     pub(crate) fn new(linear: &LinearPart<S>, h: S, tables: &GenericTables<S>) -> Self {
-        let r = tables.r;
-        let mut stage_propagators = Vec::with_capacity(tables.s);
-        let mut stage_kernels = Vec::with_capacity(tables.s * r);
-        let weight = |j: usize| S::from_f64((2 * j + 1) as f64);
-        for &c in &tables.nodes {
-            let (e, psis) = kernels_at(linear, h, c, tables);
-            stage_propagators.push(e);
-            for (j, k) in psis.iter().enumerate() {
-                stage_kernels.push(k.scaled(h * c * weight(j)));
-            }
-        }
-        let (propagator, psis) = kernels_at(linear, h, S::one(), tables);
-        let kernels = psis
-            .iter()
-            .enumerate()
-            .map(|(j, k)| k.scaled(h * weight(j)))
-            .collect();
+        let nodes = || tables.nodes.iter().copied();
+        let (stage_propagators, stage_kernels) = continuous_maps(linear, h, nodes(), tables);
+        let (mut end, kernels) = continuous_maps(linear, h, std::iter::once(S::one()), tables);
+        let (predictor_propagators, predictor_kernels) =
+            continuous_maps(linear, h, nodes().map(|c| S::one() + c), tables);
         StepMaps {
             stage_propagators,
             stage_kernels,
-            propagator,
+            propagator: end.remove(0),
             kernels,
+            predictor_propagators,
+            predictor_kernels,
         }
     }
 }

@@ -21,11 +21,14 @@ const ROUNDOFF_FLOOR: f64 = 1024.0;
 /// Per step of size h, with the Legendre moments `Lⱼ = Σᵢ ℓ_{ji} g(Yᵢ)`:
 ///
 /// ```text
-/// Yᵢ = e^{cᵢhA} y₀ + h cᵢ Σⱼ (2j+1) Ψⱼ(cᵢ, hA) Lⱼ      (fixed-point sweeps from Yᵢ = e^{cᵢhA} y₀)
+/// Yᵢ = e^{cᵢhA} y₀ + h cᵢ Σⱼ (2j+1) Ψⱼ(cᵢ, hA) Lⱼ      (fixed-point sweeps)
 /// y₁ = e^{hA} y₀  + h Σⱼ (2j+1) Ψⱼ(1, hA) Lⱼ
 /// ```
 ///
-/// The maps are built once per step size; the sweeps run until the stages are converged to
+/// The sweeps start from the previous step's continuous solution at the new nodes (the same
+/// formula at τ = 1 + cᵢ, with the previous start and moments) after a step of the same size,
+/// and from `e^{cᵢhA} y₀` otherwise. The maps are built once per step size; the sweeps run
+/// until the stages are converged to
 /// the round-off of `S` (an unconverged step is an error, never a silent result). Where
 /// [`crate::stepper::EcStepper`] is tuned for speed in `f64` (fused maps, predictors, SIMD-friendly
 /// loops), this stepper is the reference: in `DoubleDouble` it shows the order 2r for every r
@@ -44,6 +47,10 @@ pub struct GenericStepper<S: Real, Sys> {
     next: Vec<S>,
     g: Vec<S>,
     moments: Vec<S>,
+    /// The previous step's start and moments, while they predict the next step's stages.
+    previous_start: Vec<S>,
+    previous_moments: Vec<S>,
+    previous_valid: bool,
     last_sweeps: usize,
 }
 
@@ -110,6 +117,9 @@ impl<S: Real, Sys: GenericSystem<S>> GenericStepper<S, Sys> {
             next: vec![S::zero(); s * d],
             g: vec![S::zero(); s * d],
             moments: vec![S::zero(); r * d],
+            previous_start: vec![S::zero(); d],
+            previous_moments: vec![S::zero(); r * d],
+            previous_valid: false,
             last_sweeps: 0,
             tables,
         })
@@ -154,6 +164,7 @@ impl<S: Real, Sys: GenericSystem<S>> GenericStepper<S, Sys> {
         if h != self.h {
             self.maps = StepMaps::new(&self.linear, h, &self.tables);
             self.h = h;
+            self.previous_valid = false;
         }
         Ok(())
     }
@@ -179,7 +190,25 @@ impl<S: Real, Sys: GenericSystem<S>> GenericStepper<S, Sys> {
             start.fill(S::zero());
             p.apply_add(y, start);
         }
-        self.stages.copy_from_slice(&self.starts);
+        if self.previous_valid {
+            // The previous step's continuous solution at this step's nodes (the sweeps below
+            // decide convergence; a wrong prediction only costs sweeps).
+            for i in 0..s {
+                let out = &mut self.stages[i * d..(i + 1) * d];
+                out.fill(S::zero());
+                self.maps.predictor_propagators[i].apply_add(&self.previous_start, out);
+                for j in 0..r {
+                    self.maps.predictor_kernels[i * r + j]
+                        .apply_add(&self.previous_moments[j * d..(j + 1) * d], out);
+                }
+            }
+            if self.stages.iter().any(|v| !v.is_finite()) {
+                self.stages.copy_from_slice(&self.starts);
+            }
+        } else {
+            self.stages.copy_from_slice(&self.starts);
+        }
+        self.previous_valid = false;
         let mut previous = f64::INFINITY;
         let mut converged = false;
         let mut sweeps = 0;
@@ -246,7 +275,10 @@ impl<S: Real, Sys: GenericSystem<S>> GenericStepper<S, Sys> {
         if out.iter().any(|v| !v.is_finite()) {
             return Err(Error::Overflow("the new state"));
         }
-        y.copy_from_slice(out);
+        self.previous_start.copy_from_slice(y);
+        self.previous_moments.copy_from_slice(&self.moments);
+        self.previous_valid = true;
+        y.copy_from_slice(&self.next[..d]);
         Ok(sweeps)
     }
 

@@ -69,7 +69,10 @@ fn check(args: &RunArgs) -> Result<(), UsageError> {
         return refuse("--newton");
     }
     if args.extrapolate || args.constant_start {
-        return refuse("--extrapolate or --constant-start (it starts from e^{c h A} y0)");
+        return refuse(
+            "--extrapolate or --constant-start (its stages start from the previous step's \
+             continuous solution)",
+        );
     }
     Ok(())
 }
