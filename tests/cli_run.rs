@@ -724,8 +724,8 @@ fn significant_digits(number: &str) -> usize {
 
 #[test]
 fn double_double_duffing_prints_34_digits_and_meets_the_exact_solution() {
-    let (code, out, err) = ecr(&[
-        "run",
+    // EC8P on Duffing, h = 0.05, T = 10.
+    let duffing = [
         "--problem",
         "duffing",
         "--r",
@@ -734,9 +734,11 @@ fn double_double_duffing_prints_34_digits_and_meets_the_exact_solution() {
         "0.05",
         "--t-end",
         "10",
-        "--precision",
-        "double-double",
-    ]);
+    ];
+    let mut args = vec!["run"];
+    args.extend(duffing);
+    args.extend(["--precision", "double-double"]);
+    let (code, out, err) = ecr(&args);
     assert_eq!(code, 0, "{err}");
     let v: serde_json::Value = serde_json::from_str(&out).unwrap();
     assert_eq!(v["precision"], "double-double");
@@ -751,16 +753,7 @@ fn double_double_duffing_prints_34_digits_and_meets_the_exact_solution() {
     assert!(e < 1e-26, "global error {e:e}");
     assert!(v["max_energy_error"].as_f64().unwrap() < 1e-25);
     // The state agrees with the f64 run of the same method to f64 accuracy.
-    let f = run_ok(&[
-        "--problem",
-        "duffing",
-        "--r",
-        "8",
-        "--h",
-        "0.05",
-        "--t-end",
-        "10",
-    ]);
+    let f = run_ok(&duffing);
     for (a, b) in ys.iter().zip(f["y"].as_array().unwrap()) {
         let (a, b) = (a.parse::<f64>().unwrap(), b.as_f64().unwrap());
         assert!((a - b).abs() < 1e-13, "{a} vs {b}");

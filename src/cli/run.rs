@@ -184,6 +184,18 @@ fn usage(e: ecr_runtime::Error) -> UsageError {
     UsageError(e.to_string())
 }
 
+/// The wind problem of `args`: --theta, or θ = π/2 (wind) or π/2 − 1e−4 (wind-dissipative,
+/// made from δ = 1e−4), radius --amplitude (default 20).
+fn wind_problem(args: &RunArgs) -> Result<Wind, UsageError> {
+    let radius = args.amplitude.unwrap_or(20.0);
+    match (args.theta, args.problem) {
+        (Some(theta), _) => Wind::new(theta, radius),
+        (None, ProblemArg::WindDissipative) => Wind::from_deviation(1e-4, radius),
+        (None, _) => Wind::new(std::f64::consts::FRAC_PI_2, radius),
+    }
+    .map_err(usage)
+}
+
 /// Rejects an option that does not belong to the chosen problem.
 fn only_for(
     value: bool,
@@ -296,6 +308,18 @@ fn run_system<I: Integrator>(
         y,
         seconds: start.elapsed().as_secs_f64(),
     })
+}
+
+/// A fixed-step ECrP run of `system` from `y0` (r, s and h from `args`).
+fn run_ec<S: System>(
+    system: ecr_runtime::Result<S>,
+    y0: Vec<f64>,
+    args: &RunArgs,
+    settings: SolverSettings,
+) -> Result<Outcome, UsageError> {
+    let s = args.s.unwrap_or(args.r());
+    let stepper = EcStepper::with_nodes(system.map_err(usage)?, args.r(), s, args.h(), settings);
+    run_system(stepper, y0, args)
 }
 
 fn check_inputs(args: &RunArgs) -> Result<(), UsageError> {
@@ -507,12 +531,7 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), UsageError> {
         ProblemArg::Duffing => {
             let problem =
                 Duffing::new(args.omega.unwrap_or(5.0), args.k.unwrap_or(0.07)).map_err(usage)?;
-            let system = problem.system().map_err(usage)?;
-            let o = run_system(
-                EcStepper::with_nodes(system, args.r(), s, args.h(), settings),
-                problem.initial_value(),
-                args,
-            )?;
+            let o = run_ec(problem.system(), problem.initial_value(), args, settings)?;
             let exact = problem.exact(o.report.t_end).map_err(usage)?;
             let err =
                 o.y.iter()
@@ -522,19 +541,8 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), UsageError> {
             (o, params, Some(err))
         }
         ProblemArg::Wind | ProblemArg::WindDissipative => {
-            let radius = args.amplitude.unwrap_or(20.0);
-            let problem = match (args.theta, args.problem) {
-                (Some(theta), _) => Wind::new(theta, radius),
-                (None, ProblemArg::WindDissipative) => Wind::from_deviation(1e-4, radius),
-                (None, _) => Wind::new(std::f64::consts::FRAC_PI_2, radius),
-            }
-            .map_err(usage)?;
-            let system = problem.system().map_err(usage)?;
-            let o = run_system(
-                EcStepper::with_nodes(system, args.r(), s, args.h(), settings),
-                problem.initial_value(),
-                args,
-            )?;
+            let problem = wind_problem(args)?;
+            let o = run_ec(problem.system(), problem.initial_value(), args, settings)?;
             let params = json!({
                 "theta": problem.theta(),
                 "amplitude": problem.radius(),
@@ -544,22 +552,12 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), UsageError> {
         }
         ProblemArg::HenonHeiles => {
             let problem = HenonHeiles::default();
-            let system = problem.system().map_err(usage)?;
-            let o = run_system(
-                EcStepper::with_nodes(system, args.r(), s, args.h(), settings),
-                problem.initial_value(),
-                args,
-            )?;
+            let o = run_ec(problem.system(), problem.initial_value(), args, settings)?;
             (o, json!({ "y0": problem.initial_value() }), None)
         }
         ProblemArg::Nls => {
             let problem = Nls::new(args.n.unwrap_or(128)).map_err(usage)?;
-            let system = problem.system().map_err(usage)?;
-            let o = run_system(
-                EcStepper::with_nodes(system, args.r(), s, args.h(), settings),
-                problem.initial_value(),
-                args,
-            )?;
+            let o = run_ec(problem.system(), problem.initial_value(), args, settings)?;
             (o, json!({ "n": problem.n() }), None)
         }
         ProblemArg::Fpu => {
@@ -676,6 +674,21 @@ fn solve_to<S: System>(
     })
 }
 
+/// The solve of `system()` to `tol` and, for the error achieved, its solve to tol/1000.
+fn solve_and_reference<S: System>(
+    system: impl Fn() -> ecr_runtime::Result<S>,
+    y0: &[f64],
+    t_end: f64,
+    tol: f64,
+    r: Option<usize>,
+) -> Result<(Solved, Result<Solved, UsageError>), UsageError> {
+    let solved = solve_to(system().map_err(usage)?, y0.to_vec(), t_end, tol, r)?;
+    let reference = system()
+        .map_err(usage)
+        .and_then(|s| solve_to(s, y0.to_vec(), t_end, tol * 1e-3, None));
+    Ok((solved, reference))
+}
+
 /// max_i |a_i − b_i| / (tol (1 + |b_i|)): an error in units of the tolerance.
 fn in_tolerance_units(a: &[f64], b: &[f64], tol: f64) -> f64 {
     a.iter()
@@ -726,28 +739,11 @@ fn run_tolerance(args: &RunArgs, tol: f64, out: &mut dyn Write) -> Result<(), Us
             )
         }
         ProblemArg::Wind | ProblemArg::WindDissipative => {
-            let radius = args.amplitude.unwrap_or(20.0);
-            let problem = match (args.theta, args.problem) {
-                (Some(theta), _) => Wind::new(theta, radius),
-                (None, ProblemArg::WindDissipative) => Wind::from_deviation(1e-4, radius),
-                (None, _) => Wind::new(std::f64::consts::FRAC_PI_2, radius),
-            }
-            .map_err(usage)?;
+            let problem = wind_problem(args)?;
             let y0 = problem.initial_value();
-            let solved = solve_to(
-                problem.system().map_err(usage)?,
-                y0.clone(),
-                t_end,
-                tol,
-                args.r,
-            )?;
-            let reference = reference_of(solve_to(
-                problem.system().map_err(usage)?,
-                y0,
-                t_end,
-                reference_tol,
-                None,
-            ));
+            let (solved, reference) =
+                solve_and_reference(|| problem.system(), &y0, t_end, tol, args.r)?;
+            let reference = reference_of(reference);
             let params = json!({
                 "theta": problem.theta(),
                 "amplitude": problem.radius(),
@@ -758,53 +754,25 @@ fn run_tolerance(args: &RunArgs, tol: f64, out: &mut dyn Write) -> Result<(), Us
         ProblemArg::HenonHeiles => {
             let problem = HenonHeiles::default();
             let y0 = problem.initial_value();
-            let solved = solve_to(
-                problem.system().map_err(usage)?,
-                y0.clone(),
-                t_end,
-                tol,
-                args.r,
-            )?;
-            let reference = reference_of(solve_to(
-                problem.system().map_err(usage)?,
-                y0.clone(),
-                t_end,
-                reference_tol,
-                None,
-            ));
+            let (solved, reference) =
+                solve_and_reference(|| problem.system(), &y0, t_end, tol, args.r)?;
+            let reference = reference_of(reference);
             (solved, json!({ "y0": y0 }), reference)
         }
         ProblemArg::Nls => {
             let problem = Nls::new(args.n.unwrap_or(128)).map_err(usage)?;
             let y0 = problem.initial_value();
-            let solved = solve_to(
-                problem.system().map_err(usage)?,
-                y0.clone(),
-                t_end,
-                tol,
-                args.r,
-            )?;
-            let reference = reference_of(solve_to(
-                problem.system().map_err(usage)?,
-                y0,
-                t_end,
-                reference_tol,
-                None,
-            ));
+            let (solved, reference) =
+                solve_and_reference(|| problem.system(), &y0, t_end, tol, args.r)?;
+            let reference = reference_of(reference);
             (solved, json!({ "n": problem.n() }), reference)
         }
         ProblemArg::Fpu => {
             let problem = Fpu::new(3, args.omega.unwrap_or(50.0)).map_err(usage)?;
             let y0 = problem.initial_value_first_order();
-            let system = problem.first_order_system().map_err(usage)?;
-            let solved = solve_to(system, y0.clone(), t_end, tol, args.r)?;
-            let reference = reference_of(solve_to(
-                problem.first_order_system().map_err(usage)?,
-                y0,
-                t_end,
-                reference_tol,
-                None,
-            ));
+            let (solved, reference) =
+                solve_and_reference(|| problem.first_order_system(), &y0, t_end, tol, args.r)?;
+            let reference = reference_of(reference);
             (
                 solved,
                 json!({ "m": problem.m(), "omega": problem.omega() }),
