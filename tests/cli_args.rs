@@ -57,7 +57,14 @@ fn count(small: std::ops::RangeInclusive<u64>) -> impl Strategy<Value = String> 
 }
 
 fn run_args() -> impl Strategy<Value = Vec<String>> {
-    let problem = prop::sample::select(vec!["duffing", "wind", "wind-dissipative", "nls", "fpu"]);
+    let problem = prop::sample::select(vec![
+        "duffing",
+        "wind",
+        "wind-dissipative",
+        "nls",
+        "fpu",
+        "henon-heiles",
+    ]);
     let method = prop::sample::select(vec!["ec", "tc", "rknc"]);
     let option = |name: &'static str, value: BoxedStrategy<String>| {
         prop::option::weighted(0.3, value).prop_map(move |v| v.map(|v| (name, v)))
@@ -83,7 +90,12 @@ fn run_args() -> impl Strategy<Value = Vec<String>> {
             option("--max-sweeps", count(1..=200).boxed()),
         ),
         prop::collection::vec(
-            prop::sample::select(vec!["--paper-solver", "--constant-start", "--newton"]),
+            prop::sample::select(vec![
+                "--paper-solver",
+                "--constant-start",
+                "--newton",
+                "--precision=double-double",
+            ]),
             0..2,
         ),
         // One case in ten keeps an option that does not belong to the problem.
