@@ -584,7 +584,8 @@ impl<S: SecondOrderSystem> Integrator for StormerVerlet<S> {
 ///
 /// ```text
 /// Φ_τ:  p ← p − (τ/2)∇U(q);
-///       (qᵢ, pᵢ) ← (cos θᵢ qᵢ + sin θᵢ/ωᵢ pᵢ, −ωᵢ sin θᵢ qᵢ + cos θᵢ pᵢ),  θᵢ = τωᵢ, ωᵢ = √Ωᵢᵢ;
+///       (qᵢ, pᵢ) ← (cos θᵢ qᵢ + sin θᵢ/ωᵢ pᵢ, −ωᵢ sin θᵢ qᵢ + cos θᵢ pᵢ),  θᵢ = τωᵢ, ωᵢ = √Ωᵢᵢ
+///                  (as (qᵢ, pᵢ) + the increment, with cos θᵢ − 1 = −2 sin²(θᵢ/2));
 ///       p ← p − (τ/2)∇U(q)
 /// ```
 ///
@@ -603,7 +604,9 @@ pub struct RotationSplitting<S: SecondOrderSystem> {
     h: f64,
     /// √Ωᵢᵢ.
     omega: Vec<f64>,
-    /// Per distinct γ and mode: (cos θ, sin θ/ω, −ω sin θ), θ = γhω (ω = 0: (1, γh, 0)).
+    /// Per distinct γ and mode: (cos θ − 1, sin θ/ω, −ω sin θ), θ = γhω (ω = 0: (0, γh, 0)),
+    /// applied as the identity plus the increment (q, p) ↦ (q, p) + [[cos θ − 1, sin θ/ω],
+    /// [−ω sin θ, cos θ − 1]] (q, p).
     rot: Vec<[f64; 3]>,
     /// (q, p) and −∇U(q) (FSAL).
     state: KickState,
@@ -653,10 +656,14 @@ impl<S: SecondOrderSystem> RotationSplitting<S> {
                 self.omega.iter().map(move |&w| {
                     let tau = g * h;
                     if w == 0.0 {
-                        [1.0, tau, 0.0]
+                        [0.0, tau, 0.0]
                     } else {
-                        let (sin, cos) = (tau * w).sin_cos();
-                        [cos, sin / w, -w * sin]
+                        // cos θ − 1 = −2 sin²(θ/2): no cancellation, and the rotation applied
+                        // as the identity plus this increment keeps its determinant 1 to far
+                        // below an ulp of the state.
+                        let (sin, _) = (tau * w).sin_cos();
+                        let half = (0.5 * tau * w).sin();
+                        [-2.0 * half * half, sin / w, -w * sin]
                     }
                 })
             })
@@ -714,8 +721,8 @@ impl<S: SecondOrderSystem> RotationSplitting<S> {
             let r = &rot[node[i] * d..(node[i] + 1) * d];
             for ((q, p), r) in q.iter_mut().zip(p.iter_mut()).zip(r) {
                 let (q0, p0) = (*q, *p);
-                *q = r[0] * q0 + r[1] * p0;
-                *p = r[2] * q0 + r[0] * p0;
+                *q = q0 + (r[0] * q0 + r[1] * p0);
+                *p = p0 + (r[2] * q0 + r[0] * p0);
             }
         };
         self.state.step(
