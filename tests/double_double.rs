@@ -336,3 +336,40 @@ fn blow_up_is_an_error_not_a_nan() {
     );
     assert!(y.iter().all(|v| v.is_finite()));
 }
+
+/// Edges of the grid and of the input: an empty span, a span shorter than h (one step of its
+/// length), a span that h does not divide (a shortened last step), a NaN state.
+#[test]
+fn grid_and_input_edges() {
+    let p = Duffing::default();
+    let h = Dd::from(0.1);
+    let mut st = GenericStepper::new(p.clone(), 3, h).unwrap();
+    let y0 = [Dd::from(0.0), Dd::from(5.0)];
+    let mut y = y0;
+    let rep = st
+        .integrate(Dd::from(1.0), Dd::from(1.0), &mut y, |_, _, _| {})
+        .unwrap();
+    assert_eq!((rep.steps, rep.h_last), (0, None));
+    assert_eq!(y, y0);
+    let tiny = Dd::from(1e-20);
+    let rep = st
+        .integrate(Dd::from(0.0), tiny, &mut y, |_, _, _| {})
+        .unwrap();
+    assert_eq!((rep.steps, rep.h_last, rep.t_end), (1, Some(tiny), tiny));
+    let mut y = y0;
+    let rep = st
+        .integrate(Dd::from(0.0), Dd::from(0.25), &mut y, |_, _, _| {})
+        .unwrap();
+    assert_eq!(rep.steps, 3);
+    // h is the f64 0.1 here (it does not divide 0.25): the last step is 0.25 − 2·fl(0.1).
+    let last = rep.h_last.unwrap();
+    assert_eq!(last, Dd::from(0.25) - Dd::from(2.0) * h, "{last}");
+    assert!(duffing_error_dd(&p, Dd::from(0.25), &[y[0], y[1]]) < 1e-8);
+    let mut bad = [Dd::from(f64::NAN), Dd::from(1.0)];
+    assert!(matches!(
+        st.step(&mut bad),
+        Err(ecr_runtime::Error::NonFinite(_))
+    ));
+    assert!(GenericStepper::new(p.clone(), 3, Dd::from(-0.1)).is_err());
+    assert!(GenericStepper::new(p, 0, h).is_err());
+}

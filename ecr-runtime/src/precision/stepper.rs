@@ -173,7 +173,8 @@ impl<S: Real, Sys: GenericSystem<S>> GenericStepper<S, Sys> {
     /// state); returns the sweeps it took.
     ///
     /// # Errors
-    /// [`Error::DimensionMismatch`] for a `y` of the wrong length; [`Error::NoConvergence`] if
+    /// [`Error::DimensionMismatch`] for a `y` of the wrong length; [`Error::NonFinite`] for a
+    /// `y` with NaN or infinite entries; [`Error::NoConvergence`] if
     /// the stages do not converge within the sweeps allowed; [`Error::Overflow`] if they
     /// become non-finite. `y` is unchanged on error.
     pub fn step(&mut self, y: &mut [S]) -> Result<usize> {
@@ -184,6 +185,9 @@ impl<S: Real, Sys: GenericSystem<S>> GenericStepper<S, Sys> {
                 expected: d,
                 found: y.len(),
             });
+        }
+        if y.iter().any(|v| !v.is_finite()) {
+            return Err(Error::NonFinite("the state y"));
         }
         for (i, p) in self.maps.stage_propagators.iter().enumerate() {
             let start = &mut self.starts[i * d..(i + 1) * d];
@@ -307,13 +311,14 @@ impl<S: Real, Sys: GenericSystem<S>> GenericStepper<S, Sys> {
         let span = t_end - t0;
         let ratio = span.to_f64() / self.h.to_f64();
         let nearest = ratio.round();
-        let (steps, h, last) = if ratio < 1e-300 {
+        let (steps, h, last) = if span == S::zero() {
             (0, self.h, None)
-        } else if (ratio - nearest).abs() <= 1e-9 * nearest.max(1.0) {
+        } else if nearest >= 1.0 && (ratio - nearest).abs() <= 1e-9 * nearest {
             let h = span / S::from_f64(nearest);
             (nearest as usize, h, Some(h))
         } else {
-            let n = ratio.ceil();
+            // At least one step: a span shorter than h is one step of its length.
+            let n = ratio.ceil().max(1.0);
             let last = span - self.h * S::from_f64(n - 1.0);
             (n as usize, self.h, Some(last))
         };
