@@ -40,7 +40,9 @@ pub struct GenericStepper<S: Real, Sys> {
     tables: GenericTables<S>,
     linear: LinearPart<S>,
     h: S,
-    maps: StepMaps<S>,
+    /// The maps of the step size `h`, built at the first step that needs them (so that
+    /// `integrate`, which may round h to divide the span, builds them once).
+    maps: Option<StepMaps<S>>,
     max_sweeps: usize,
     stages: Vec<S>,
     starts: Vec<S>,
@@ -104,13 +106,12 @@ impl<S: Real, Sys: GenericSystem<S>> GenericStepper<S, Sys> {
         let linear = system.linear_part();
         linear.check(d)?;
         let tables = GenericTables::new(r, s)?;
-        let maps = StepMaps::new(&linear, h, &tables);
         Ok(GenericStepper {
             system,
             d,
             linear,
             h,
-            maps,
+            maps: None,
             max_sweeps: GENERIC_MAX_SWEEPS,
             stages: vec![S::zero(); s * d],
             starts: vec![S::zero(); s * d],
@@ -155,14 +156,15 @@ impl<S: Real, Sys: GenericSystem<S>> GenericStepper<S, Sys> {
         self.max_sweeps = n.max(1);
     }
 
-    /// Changes the step size (the φ-functions are rebuilt; nothing is rebuilt if it is equal).
+    /// Changes the step size (the φ-functions are rebuilt at the next step; nothing is rebuilt
+    /// if it is equal).
     ///
     /// # Errors
     /// [`Error::InvalidStepSize`] unless `h` is finite and > 0.
     pub fn set_step_size(&mut self, h: S) -> Result<()> {
         check_step(h)?;
         if h != self.h {
-            self.maps = StepMaps::new(&self.linear, h, &self.tables);
+            self.maps = None;
             self.h = h;
             self.previous_valid = false;
         }
@@ -189,7 +191,11 @@ impl<S: Real, Sys: GenericSystem<S>> GenericStepper<S, Sys> {
         if y.iter().any(|v| !v.is_finite()) {
             return Err(Error::NonFinite("the state y"));
         }
-        for (i, p) in self.maps.stage_propagators.iter().enumerate() {
+        if self.maps.is_none() {
+            self.maps = Some(StepMaps::new(&self.linear, self.h, &self.tables));
+        }
+        let maps = self.maps.as_ref().expect("built above");
+        for (i, p) in maps.stage_propagators.iter().enumerate() {
             let start = &mut self.starts[i * d..(i + 1) * d];
             start.fill(S::zero());
             p.apply_add(y, start);
@@ -200,9 +206,9 @@ impl<S: Real, Sys: GenericSystem<S>> GenericStepper<S, Sys> {
             for i in 0..s {
                 let out = &mut self.stages[i * d..(i + 1) * d];
                 out.fill(S::zero());
-                self.maps.predictor_propagators[i].apply_add(&self.previous_start, out);
+                maps.predictor_propagators[i].apply_add(&self.previous_start, out);
                 for j in 0..r {
-                    self.maps.predictor_kernels[i * r + j]
+                    maps.predictor_kernels[i * r + j]
                         .apply_add(&self.previous_moments[j * d..(j + 1) * d], out);
                 }
             }
@@ -236,8 +242,7 @@ impl<S: Real, Sys: GenericSystem<S>> GenericStepper<S, Sys> {
             for i in 0..s {
                 let out = &mut self.next[i * d..(i + 1) * d];
                 for j in 0..r {
-                    self.maps.stage_kernels[i * r + j]
-                        .apply_add(&self.moments[j * d..(j + 1) * d], out);
+                    maps.stage_kernels[i * r + j].apply_add(&self.moments[j * d..(j + 1) * d], out);
                 }
             }
             let mut delta = 0.0f64;
@@ -272,9 +277,9 @@ impl<S: Real, Sys: GenericSystem<S>> GenericStepper<S, Sys> {
         // y₁ from the moments of the last sweep.
         let out = &mut self.next[..d];
         out.fill(S::zero());
-        self.maps.propagator.apply_add(y, out);
+        maps.propagator.apply_add(y, out);
         for j in 0..r {
-            self.maps.kernels[j].apply_add(&self.moments[j * d..(j + 1) * d], out);
+            maps.kernels[j].apply_add(&self.moments[j * d..(j + 1) * d], out);
         }
         if out.iter().any(|v| !v.is_finite()) {
             return Err(Error::Overflow("the new state"));
@@ -291,7 +296,8 @@ impl<S: Real, Sys: GenericSystem<S>> GenericStepper<S, Sys> {
     ///
     /// The grid is `t0 + n h` with `h` the stepper's step size, ending exactly at `t_end`: when
     /// `(t_end − t0)/h` is within 1e−9 of an integer N, the step becomes `(t_end − t0)/N`
-    /// (computed in `S`); otherwise the last step is shortened. The report gives both sizes.
+    /// (computed in `S`); otherwise the last step is shortened. The report gives both sizes; the
+    /// stepper is left with the regular one.
     ///
     /// # Errors
     /// [`Error::InvalidParameter`] for `t_end < t0` or non-finite times; a failed step as
@@ -374,7 +380,8 @@ impl<S: Real, Sys: GenericSystem<S>> GenericStepper<S, Sys> {
             }
             observe(n, report.t_end, y);
         }
-        // The step size stays the regular one for a next call.
+        // The regular step size stays for a next call (the maps are rebuilt only if a step
+        // needs them).
         self.set_step_size(h)?;
         report.max_energy_error = max_energy_error;
         Ok(report)

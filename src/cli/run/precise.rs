@@ -147,6 +147,19 @@ pub(super) fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), UsageError>
         }
         ProblemArg::Nls | ProblemArg::Fpu => unreachable!("refused by check"),
     };
+    // As the f64 path's check_finite: no success with an overflowed energy or error (the
+    // stepper has already refused non-finite states).
+    let finite = |v: Option<f64>| v.is_none_or(f64::is_finite);
+    let energies = [report.energy_start, report.energy_end].map(|e| e.map(|e| e.hi()));
+    if !(energies.into_iter().all(finite)
+        && finite(report.max_energy_error)
+        && finite(global_error))
+    {
+        return Err(UsageError(format!(
+            "integration failed: the energy or the global error is not finite at t = {}",
+            report.t_end
+        )));
+    }
     let value = json!({
         "problem": args.problem.name(),
         "parameters": parameters,
