@@ -25,6 +25,29 @@ pub(super) fn axpy(y: &mut DMatrix<f64>, a: f64, x: &DMatrix<f64>) {
     }
 }
 
+/// `out = a b` for square matrices of the same size. Up to 5 × 5 by the plain column-major
+/// loop (each entry summed in ascending k, the first product not added to 0): the operations
+/// nalgebra performs there, without its per-column dispatch (bit for bit `a.mul_to(b, out)`,
+/// at a fraction of the cost for the 2 × 2 banks of small systems); larger ones by nalgebra.
+pub(super) fn mul_into(a: &DMatrix<f64>, b: &DMatrix<f64>, out: &mut DMatrix<f64>) {
+    let n = a.nrows();
+    if n > 5 {
+        a.mul_to(b, out);
+        return;
+    }
+    let (a, b, o) = (a.as_slice(), b.as_slice(), out.as_mut_slice());
+    for j in 0..n {
+        let (bj, oj) = (&b[j * n..(j + 1) * n], &mut o[j * n..(j + 1) * n]);
+        for (i, oij) in oj.iter_mut().enumerate() {
+            let mut acc = a[i] * bj[0];
+            for k in 1..n {
+                acc += a[k * n + i] * bj[k];
+            }
+            *oij = acc;
+        }
+    }
+}
+
 /// The 1-norm (maximum absolute column sum).
 pub(super) fn norm1(a: &DMatrix<f64>) -> f64 {
     a.column_iter()
@@ -296,33 +319,31 @@ pub fn phi_symmetric(a: &DMatrix<f64>, p: usize) -> Result<Vec<DMatrix<f64>>> {
     Ok(phis)
 }
 
-/// `C = A B` for double-double matrices `A = (ah, al)`, `B = (bh, bl)`: the `ah·bh` part by the
-/// compensated dot product Dot2 (Ogita, Rump & Oishi, 2005: as accurate as if computed in twice
-/// the working precision), the cross terms in f64; the low parts are ≤ 2⁻⁵³ of the high ones.
+/// `C = A B` for double-double matrices `A = (ah, al)`, `B = (bh, bl)` (n × n, column-major
+/// slices), written into `(ch, cl)`: the `ah·bh` part by the compensated dot product Dot2
+/// (Ogita, Rump & Oishi, 2005: as accurate as if computed in twice the working precision), the
+/// cross terms in f64; the low parts are ≤ 2⁻⁵³ of the high ones.
 fn mul_dd(
-    ah: &DMatrix<f64>,
-    al: &DMatrix<f64>,
-    bh: &DMatrix<f64>,
-    bl: &DMatrix<f64>,
-) -> (DMatrix<f64>, DMatrix<f64>) {
-    let n = ah.nrows();
-    let mut ch = DMatrix::zeros(n, n);
-    let mut cl = DMatrix::zeros(n, n);
+    n: usize,
+    (ah, al): (&[f64], &[f64]),
+    (bh, bl): (&[f64], &[f64]),
+    (ch, cl): (&mut [f64], &mut [f64]),
+) {
     for j in 0..n {
         for i in 0..n {
             let (mut s, mut c) = (0.0, 0.0);
             for k in 0..n {
-                let (p, e) = two_prod(ah[(i, k)], bh[(k, j)]);
+                let (a, b) = (ah[k * n + i], bh[j * n + k]);
+                let (p, e) = two_prod(a, b);
                 let (t, q) = two_sum(s, p);
                 s = t;
-                c += q + e + (ah[(i, k)] * bl[(k, j)] + al[(i, k)] * bh[(k, j)]);
+                c += q + e + (a * bl[j * n + k] + al[k * n + i] * b);
             }
             let (h, l) = two_sum(s, c);
-            ch[(i, j)] = h;
-            cl[(i, j)] = l;
+            ch[j * n + i] = h;
+            cl[j * n + i] = l;
         }
     }
-    (ch, cl)
 }
 
 /// `e^X` in double-double: `(hi, lo)` with `hi + lo = e^X` to about `2⁻¹⁰⁴ ‖e^X‖` for `X`
@@ -362,14 +383,24 @@ pub(crate) fn expm_dd_split(
     } else {
         (norm / 0.5).log2().ceil() as i32
     };
-    let y = x * (-s as f64).exp2();
-    let zero = DMatrix::<f64>::zeros(n, n);
-    // The low part of the argument, scaled as the high part (exactly: a power of 2).
-    let y_lo = x_lo.map_or_else(|| zero.clone(), |l| l * (-s as f64).exp2());
+    // Column-major buffers, allocated once: Y (scaled exactly: a power of 2), the result T
+    // and the product P, each as (high, low).
+    let scale = (-s as f64).exp2();
+    let y: Vec<f64> = x.iter().map(|v| v * scale).collect();
+    let y_lo: Vec<f64> = match x_lo {
+        Some(l) => l.iter().map(|v| v * scale).collect(),
+        None => vec![0.0; n * n],
+    };
+    let mut th = vec![0.0; n * n];
+    let mut tl = vec![0.0; n * n];
+    let mut ph = vec![0.0; n * n];
+    let mut pl = vec![0.0; n * n];
+    for i in 0..n {
+        th[i * n + i] = 1.0;
+    }
     // Horner: T ← I + (Y T)/k for k = 27, …, 1.
-    let (mut th, mut tl) = (DMatrix::<f64>::identity(n, n), zero.clone());
     for k in (1..=27u32).rev() {
-        let (ph, pl) = mul_dd(&y, &y_lo, &th, &tl);
+        mul_dd(n, (&y, &y_lo), (&th, &tl), (&mut ph, &mut pl));
         let kf = f64::from(k);
         for ((h, l), (a, b)) in th
             .iter_mut()
@@ -384,17 +415,18 @@ pub(crate) fn expm_dd_split(
             *l = ql;
         }
         for i in 0..n {
-            let (h, e) = two_sum(1.0, th[(i, i)]);
-            let (h2, l2) = two_sum(h, e + tl[(i, i)]);
-            th[(i, i)] = h2;
-            tl[(i, i)] = l2;
+            let (h, e) = two_sum(1.0, th[i * n + i]);
+            let (h2, l2) = two_sum(h, e + tl[i * n + i]);
+            th[i * n + i] = h2;
+            tl[i * n + i] = l2;
         }
     }
     for _ in 0..s {
-        let (h, l) = mul_dd(&th, &tl, &th, &tl);
-        th = h;
-        tl = l;
+        mul_dd(n, (&th, &tl), (&th, &tl), (&mut ph, &mut pl));
+        std::mem::swap(&mut th, &mut ph);
+        std::mem::swap(&mut tl, &mut pl);
     }
+    let (th, tl) = (DMatrix::from_vec(n, n, th), DMatrix::from_vec(n, n, tl));
     if th.iter().chain(tl.iter()).any(|v| !v.is_finite()) {
         return Err(Error::Numerical(
             "the exponential overflows f64 (eigenvalues far in the right half-plane)".into(),
