@@ -14,3 +14,17 @@ pub mod exponential;
 pub mod krylov;
 pub mod split_step;
 pub mod splitting;
+
+use ecr_runtime::stepper::StepReport;
+
+/// The report of an explicit step that made `g_evals` evaluations of g (no stage iteration).
+pub(crate) fn explicit_step(g_evals: usize) -> StepReport {
+    StepReport {
+        sweeps: 0,
+        residual: 0.0,
+        g_evals,
+        converged: true,
+        jacobian_evals: 0,
+        newton_refreshes: 0,
+    }
+}

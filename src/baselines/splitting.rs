@@ -306,7 +306,7 @@ impl<S: System> LinearFlowSplitting<S> {
         y.copy_from_slice(&self.u);
         self.last.copy_from_slice(&self.u);
         self.fsal = true;
-        Ok(kick_report(g_evals))
+        Ok(super::explicit_step(g_evals))
     }
 }
 
@@ -450,7 +450,7 @@ impl KickState {
         y[d..].copy_from_slice(&self.p);
         self.last.copy_from_slice(y);
         self.fsal = true;
-        Ok(kick_report(g_evals))
+        Ok(super::explicit_step(g_evals))
     }
 
     /// [`KickState::step`] for a compile-time dimension `D` and a force −∇U: the kicks
@@ -504,19 +504,7 @@ impl KickState {
         self.force.iter_mut().zip(&f).for_each(|(m, f)| *m = -f);
         self.last.copy_from_slice(y);
         self.fsal = true;
-        Ok(kick_report(g_evals))
-    }
-}
-
-/// The report of an explicit step that made `g_evals` evaluations.
-fn kick_report(g_evals: usize) -> StepReport {
-    StepReport {
-        sweeps: 0,
-        residual: 0.0,
-        g_evals,
-        converged: true,
-        jacobian_evals: 0,
-        newton_refreshes: 0,
+        Ok(super::explicit_step(g_evals))
     }
 }
 

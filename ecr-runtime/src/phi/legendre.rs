@@ -72,6 +72,25 @@ fn gauss_legendre(q: usize) -> (Vec<f64>, Vec<f64>) {
     (nodes, weights)
 }
 
+/// One Newton step on P_q at x: (P_q(x)/P_q'(x), P_q'(x)), P_q by its three-term recurrence.
+fn newton_step(q: usize, x: f64) -> (f64, f64) {
+    let (mut p0, mut p1) = (1.0, x);
+    for k in 1..q {
+        let p2 = ((2 * k + 1) as f64 * x * p1 - k as f64 * p0) / (k + 1) as f64;
+        p0 = p1;
+        p1 = p2;
+    }
+    let p = if q == 0 { 1.0 } else { p1 };
+    let pm1 = if q <= 1 { 1.0 } else { p0 };
+    let dp = q as f64 * (x * p - pm1) / (x * x - 1.0);
+    (p / dp, dp)
+}
+
+/// The initial guess of root i of P_q (descending, Tricomi type).
+fn initial_root(q: usize, i: usize) -> f64 {
+    (std::f64::consts::PI * (i as f64 + 0.75) / (q as f64 + 0.5)).cos()
+}
+
 /// Newton's iterations on root i of P_q (on [−1, 1], descending, from the Tricomi-type initial
 /// guess): the root and P_q' at the iterate before it, as after at most 100 iterations that
 /// stop once |dx| ≤ 1e−17. Most roots never meet that test: the iteration settles on a fixed
@@ -81,21 +100,13 @@ fn gauss_legendre(q: usize) -> (Vec<f64>, Vec<f64>) {
 /// about a tenth of its cost.
 fn legendre_root(q: usize, i: usize) -> (f64, f64) {
     const MAX_ITERATIONS: usize = 100;
-    let mut x = (std::f64::consts::PI * (i as f64 + 0.75) / (q as f64 + 0.5)).cos();
+    let mut x = initial_root(q, i);
     let mut dp = 1.0;
     // The states (x, dp) after the last three iterations, the newest first.
     let mut past = [(f64::NAN, f64::NAN); 3];
     for it in 0..MAX_ITERATIONS {
-        let (mut p0, mut p1) = (1.0, x);
-        for k in 1..q {
-            let p2 = ((2 * k + 1) as f64 * x * p1 - k as f64 * p0) / (k + 1) as f64;
-            p0 = p1;
-            p1 = p2;
-        }
-        let p = if q == 0 { 1.0 } else { p1 };
-        let pm1 = if q <= 1 { 1.0 } else { p0 };
-        dp = q as f64 * (x * p - pm1) / (x * x - 1.0);
-        let dx = p / dp;
+        let dx;
+        (dx, dp) = newton_step(q, x);
         x -= dx;
         if dx.abs() <= 1e-17 {
             break;
@@ -604,19 +615,10 @@ mod tests {
     #[test]
     fn legendre_roots_match_the_full_newton_loop() {
         fn plain(q: usize, i: usize) -> (f64, f64) {
-            let mut x = (std::f64::consts::PI * (i as f64 + 0.75) / (q as f64 + 0.5)).cos();
-            let mut dp = 1.0;
+            let (mut x, mut dp) = (initial_root(q, i), 1.0);
             for _ in 0..100 {
-                let (mut p0, mut p1) = (1.0, x);
-                for k in 1..q {
-                    let p2 = ((2 * k + 1) as f64 * x * p1 - k as f64 * p0) / (k + 1) as f64;
-                    p0 = p1;
-                    p1 = p2;
-                }
-                let p = if q == 0 { 1.0 } else { p1 };
-                let pm1 = if q <= 1 { 1.0 } else { p0 };
-                dp = q as f64 * (x * p - pm1) / (x * x - 1.0);
-                let dx = p / dp;
+                let dx;
+                (dx, dp) = newton_step(q, x);
                 x -= dx;
                 if dx.abs() <= 1e-17 {
                     break;
