@@ -137,3 +137,68 @@ fn static_stepper_rejects_a_system_of_the_wrong_dimension() {
         Err(ecr_runtime::Error::DimensionMismatch { .. })
     ));
 }
+
+/// The run-time kernel on fixed-size buffers (`Stepper<RuntimeKernel, _, StaticBuffers<2, r,
+/// r>>`, what `ecr run` and `ecr bench` use for d = 2, s = r ≤ 8) is bit for bit `EcStepper`,
+/// step by step, for r = 1..8 on Duffing and the wind problem, with the default solver, the
+/// extrapolating predictor, Newton and the paper's settings; and wrong sizes are refused.
+#[test]
+fn run_time_kernel_on_fixed_size_buffers_equals_ec_stepper_bit_for_bit() {
+    use ecr_runtime::stepper::{Predictor, RuntimeKernel, StageSolver, StaticBuffers, Stepper};
+    macro_rules! check_r {
+        ($r:literal) => {{
+            let settings = [
+                SolverSettings::default(),
+                SolverSettings {
+                    predictor: Predictor::Extrapolate,
+                    ..SolverSettings::default()
+                },
+                SolverSettings {
+                    solver: StageSolver::Newton,
+                    ..SolverSettings::default()
+                },
+                SolverSettings::paper(),
+            ];
+            for (a, y0, g) in problems() {
+                for set in &settings {
+                    let sys = || Semilinear::new(Dense::new(a.clone()).unwrap(), g);
+                    let mut fixed =
+                        Stepper::<RuntimeKernel, _, StaticBuffers<2, $r, $r>>::with_nodes(
+                            sys(),
+                            $r,
+                            $r,
+                            0.05,
+                            *set,
+                        )
+                        .unwrap();
+                    let mut dynamic = EcStepper::with_nodes(sys(), $r, $r, 0.05, *set).unwrap();
+                    let (mut y1, mut y2) = (y0.clone(), y0.clone());
+                    for n in 0..200 {
+                        let r1 = fixed.step(&mut y1).unwrap();
+                        let r2 = dynamic.step(&mut y2).unwrap();
+                        assert_eq!(bits(&y1), bits(&y2), "r = {}, {set:?}, step {n}", $r);
+                        assert_eq!((r1.sweeps, r1.g_evals), (r2.sweeps, r2.g_evals));
+                    }
+                }
+            }
+        }};
+    }
+    check_r!(1);
+    check_r!(2);
+    check_r!(3);
+    check_r!(4);
+    check_r!(5);
+    check_r!(6);
+    check_r!(7);
+    check_r!(8);
+    // Sizes that are not the buffers' are an error, not a panic.
+    let (a, _, g) = problems().remove(0);
+    let wrong = Stepper::<RuntimeKernel, _, StaticBuffers<2, 3, 3>>::with_nodes(
+        Semilinear::new(Dense::new(a).unwrap(), g),
+        4,
+        4,
+        0.05,
+        SolverSettings::default(),
+    );
+    assert!(wrong.is_err());
+}

@@ -1,5 +1,6 @@
 //! `ecr run`: integrate one of the paper's test problems and report the run as JSON.
 
+use super::reproduce::methods::with_ec_stepper;
 use super::{UsageError, memory, progress};
 use clap::{Args, ValueEnum};
 use ecr::problems::{Duffing, Fpu, HenonHeiles, Nls, Wind};
@@ -318,8 +319,10 @@ fn run_ec<S: System>(
     settings: SolverSettings,
 ) -> Result<Outcome, UsageError> {
     let s = args.s.unwrap_or(args.r());
-    let stepper = EcStepper::with_nodes(system.map_err(usage)?, args.r(), s, args.h(), settings);
-    run_system(stepper, y0, args)
+    let system = system.map_err(usage)?;
+    with_ec_stepper!(system, args.r(), s, args.h(), settings, |st| run_system(
+        st, y0, args
+    ))
 }
 
 fn check_inputs(args: &RunArgs) -> Result<(), UsageError> {

@@ -61,8 +61,8 @@ impl<K: Kernel, S: System, B: Buffers> StepContext<'_, K, S, B> {
                 .nonlinear_stages(stages, g, &mut p.scratch, unchanged);
             return Ok(());
         }
-        let (system, scratch, d) = (self.system, &mut *self.scratch, self.sizes.2);
-        self.kernel.each_stage(|j| {
+        let (system, scratch, (_, s, d)) = (self.system, &mut *self.scratch, self.sizes);
+        self.kernel.each_stage_sized(s, |j| {
             if unchanged == Some(j) {
                 return Ok(());
             }

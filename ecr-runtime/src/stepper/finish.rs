@@ -32,7 +32,7 @@ impl<K: Kernel, S: System, B: Buffers> StepContext<'_, K, S, B> {
         if let Some(p) = self.par.as_deref_mut() {
             p.moments(g, moments, d);
         } else {
-            self.kernel.legendre_moments(g, moments, d);
+            self.kernel.legendre_moments_sized(g, moments, self.sizes);
         }
         let (hi, rest) = tmp.split_at_mut(d);
         let (lo, ec) = rest.split_at_mut(d);

@@ -60,7 +60,7 @@ impl<K: Kernel, S: System, B: Buffers> StepContext<'_, K, S, B> {
             self.bank
                 .combine_concurrent(0..s, y0, moments, coef, new_stages, self.ws, helpers);
         } else {
-            self.kernel.legendre_moments(g, moments, d);
+            self.kernel.legendre_moments_sized(g, moments, self.sizes);
             if B::LOCAL_STAGES {
                 self.bank.combine(0..s, y0, moments, coef, props, self.ws);
                 new_stages.copy_from_slice(props);

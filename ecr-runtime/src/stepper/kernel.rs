@@ -20,9 +20,24 @@ pub trait Kernel {
     /// k < r, each sum accumulated from 0.0 in the order j = 0, 1, … (so that every kernel
     /// rounds identically).
     fn legendre_moments(&self, g: &[f64], m: &mut [f64], d: usize);
+    /// [`legendre_moments`](Self::legendre_moments) with the sizes (r, s, d) the stepper
+    /// knows: compile-time constants where its buffers are fixed-size, so that a run-time
+    /// kernel's loops unroll as a fixed kernel's do (the same sums in the same order). The
+    /// default ignores r and s.
+    #[inline(always)]
+    fn legendre_moments_sized(&self, g: &[f64], m: &mut [f64], sizes: (usize, usize, usize)) {
+        self.legendre_moments(g, m, sizes.2);
+    }
     /// Calls `f(j)` for j = 0..s in order, stopping at the first error.
     fn each_stage<F: FnMut(usize) -> Result<()>>(&self, mut f: F) -> Result<()> {
         (0..self.s()).try_for_each(&mut f)
+    }
+    /// [`each_stage`](Self::each_stage) with the s the stepper knows (a compile-time constant
+    /// for fixed-size buffers). The default ignores it.
+    #[inline(always)]
+    fn each_stage_sized<F: FnMut(usize) -> Result<()>>(&self, s: usize, f: F) -> Result<()> {
+        let _ = s;
+        self.each_stage(f)
     }
 }
 
@@ -71,11 +86,26 @@ impl Kernel for RuntimeKernel {
     fn legendre_moments(&self, g: &[f64], m: &mut [f64], d: usize) {
         accumulate(&self.0.lw, self.0.r, self.0.s, g, m, d);
     }
+    #[inline(always)]
+    fn legendre_moments_sized(&self, g: &[f64], m: &mut [f64], (r, s, d): (usize, usize, usize)) {
+        // The stepper's buffers were checked against this kernel's r and s when it was built.
+        debug_assert_eq!((r, s), (self.0.r, self.0.s));
+        accumulate(&self.0.lw, r, s, g, m, d);
+    }
+    #[inline(always)]
+    fn each_stage_sized<F: FnMut(usize) -> Result<()>>(&self, s: usize, mut f: F) -> Result<()> {
+        debug_assert_eq!(s, self.0.s);
+        for j in 0..s {
+            f(j)?;
+        }
+        Ok(())
+    }
 }
 
 /// `m_k = Σ_j w[k·s + j] g_j`, k < r, each sum from 0.0 in the order j = 0, 1, …. Components
 /// go in blocks of 8, 4, 2 and 1 whose sums stay in registers (at small d a sum through memory
 /// costs a store-to-load round trip per term).
+#[inline(always)]
 fn accumulate(w: &[f64], r: usize, s: usize, g: &[f64], m: &mut [f64], d: usize) {
     let g = &g[..s * d];
     for (k, mk) in m[..r * d].chunks_exact_mut(d).enumerate() {
