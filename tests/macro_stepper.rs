@@ -138,59 +138,59 @@ fn static_stepper_rejects_a_system_of_the_wrong_dimension() {
     ));
 }
 
-/// The run-time kernel on fixed-size buffers (`Stepper<RuntimeKernel, _, StaticBuffers<2, r,
-/// r>>`, what `ecr run` and `ecr bench` use for d = 2, s = r ≤ 8) is bit for bit `EcStepper`,
-/// step by step, for r = 1..8 on Duffing and the wind problem, with the default solver, the
-/// extrapolating predictor, Newton and the paper's settings; and wrong sizes are refused.
+/// [`SizedEcStepper`] (what `ecr run` and `ecr bench` use for the planar problems) puts d = 2,
+/// s = r <= 8 on fixed-size buffers (the run-time kernel on `StaticBuffers<2, r, r>`) and
+/// everything else on `EcStepper`'s heap buffers, and is bit for bit `EcStepper` either way,
+/// step by step, for r = 1..10 (s = r, and s = r + 1) on Duffing and the wind problem, with the
+/// default solver, the extrapolating predictor, Newton and the paper's settings; dense output
+/// and a change of step size included. Sizes that are not the buffers' are refused.
 #[test]
-fn run_time_kernel_on_fixed_size_buffers_equals_ec_stepper_bit_for_bit() {
-    use ecr_runtime::stepper::{Predictor, RuntimeKernel, StageSolver, StaticBuffers, Stepper};
-    macro_rules! check_r {
-        ($r:literal) => {{
-            let settings = [
-                SolverSettings::default(),
-                SolverSettings {
-                    predictor: Predictor::Extrapolate,
-                    ..SolverSettings::default()
-                },
-                SolverSettings {
-                    solver: StageSolver::Newton,
-                    ..SolverSettings::default()
-                },
-                SolverSettings::paper(),
-            ];
+fn sized_stepper_equals_ec_stepper_bit_for_bit() {
+    use ecr_runtime::stepper::{
+        Predictor, RuntimeKernel, SizedEcStepper, StageSolver, StaticBuffers, Stepper,
+    };
+    let settings = [
+        SolverSettings::default(),
+        SolverSettings {
+            predictor: Predictor::Extrapolate,
+            ..SolverSettings::default()
+        },
+        SolverSettings {
+            solver: StageSolver::Newton,
+            ..SolverSettings::default()
+        },
+        SolverSettings::paper(),
+    ];
+    let mut fixed_seen = 0;
+    for r in 1..=10 {
+        for s in [r, r + 1] {
             for (a, y0, g) in problems() {
                 for set in &settings {
                     let sys = || Semilinear::new(Dense::new(a.clone()).unwrap(), g);
-                    let mut fixed =
-                        Stepper::<RuntimeKernel, _, StaticBuffers<2, $r, $r>>::with_nodes(
-                            sys(),
-                            $r,
-                            $r,
-                            0.05,
-                            *set,
-                        )
-                        .unwrap();
-                    let mut dynamic = EcStepper::with_nodes(sys(), $r, $r, 0.05, *set).unwrap();
+                    let mut sized = SizedEcStepper::with_nodes(sys(), r, s, 0.05, *set).unwrap();
+                    let mut dynamic = EcStepper::with_nodes(sys(), r, s, 0.05, *set).unwrap();
+                    assert_eq!(sized.is_fixed_size(), s == r && r <= 8, "r = {r}, s = {s}");
+                    fixed_seen += usize::from(sized.is_fixed_size());
+                    assert_eq!((sized.r(), sized.s()), (r, s));
                     let (mut y1, mut y2) = (y0.clone(), y0.clone());
                     for n in 0..200 {
-                        let r1 = fixed.step(&mut y1).unwrap();
+                        if n == 100 {
+                            sized.set_step_size(0.04).unwrap();
+                            dynamic.set_step_size(0.04).unwrap();
+                        }
+                        let r1 = sized.step(&mut y1).unwrap();
                         let r2 = dynamic.step(&mut y2).unwrap();
-                        assert_eq!(bits(&y1), bits(&y2), "r = {}, {set:?}, step {n}", $r);
-                        assert_eq!((r1.sweeps, r1.g_evals), (r2.sweeps, r2.g_evals));
+                        let at = format!("r = {r}, s = {s}, {set:?}, step {n}");
+                        assert_eq!(bits(&y1), bits(&y2), "{at}");
+                        assert_eq!((r1.sweeps, r1.g_evals), (r2.sweeps, r2.g_evals), "{at}");
                     }
+                    let (d1, d2) = (sized.dense_output(0.3), dynamic.dense_output(0.3));
+                    assert_eq!(bits(&d1.unwrap()), bits(&d2.unwrap()));
                 }
             }
-        }};
+        }
     }
-    check_r!(1);
-    check_r!(2);
-    check_r!(3);
-    check_r!(4);
-    check_r!(5);
-    check_r!(6);
-    check_r!(7);
-    check_r!(8);
+    assert_eq!(fixed_seen, 8 * 2 * settings.len());
     // Sizes that are not the buffers' are an error, not a panic.
     let (a, _, g) = problems().remove(0);
     let wrong = Stepper::<RuntimeKernel, _, StaticBuffers<2, 3, 3>>::with_nodes(

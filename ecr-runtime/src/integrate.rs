@@ -2,12 +2,12 @@
 
 use crate::error::{Error, Result};
 use crate::second_order::{SecondOrderSystem, TcStepper};
-use crate::stepper::{Buffers, Kernel, StepReport, Stepper};
+use crate::stepper::{Buffers, Kernel, SizedEcStepper, StepReport, Stepper};
 use crate::system::System;
 
 /// A one-step method with a fixed step size acting on a flat state vector: what
-/// [`integrate`] drives. Implemented by [`Stepper`] (state y) and [`TcStepper`] (state
-/// (q, p), concatenated).
+/// [`integrate`] drives. Implemented by [`Stepper`] and [`SizedEcStepper`] (state y) and
+/// [`TcStepper`] (state (q, p), concatenated).
 pub trait Integrator {
     /// The step size.
     fn step_size(&self) -> f64;
@@ -31,6 +31,21 @@ impl<K: Kernel, S: System, B: Buffers> Integrator for Stepper<K, S, B> {
     }
     fn set_step_size(&mut self, h: f64) -> Result<()> {
         Stepper::set_step_size(self, h)
+    }
+    fn step_state(&mut self, y: &mut [f64]) -> Result<StepReport> {
+        self.step(y)
+    }
+    fn energy_of(&self, y: &[f64]) -> Option<f64> {
+        self.system().energy(y)
+    }
+}
+
+impl<S: System> Integrator for SizedEcStepper<S> {
+    fn step_size(&self) -> f64 {
+        SizedEcStepper::step_size(self)
+    }
+    fn set_step_size(&mut self, h: f64) -> Result<()> {
+        SizedEcStepper::set_step_size(self, h)
     }
     fn step_state(&mut self, y: &mut [f64]) -> Result<StepReport> {
         self.step(y)

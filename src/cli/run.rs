@@ -1,13 +1,14 @@
 //! `ecr run`: integrate one of the paper's test problems and report the run as JSON.
 
-use super::reproduce::methods::with_ec_stepper;
 use super::{UsageError, memory, progress};
 use clap::{Args, ValueEnum};
 use ecr::problems::{Duffing, Fpu, HenonHeiles, Nls, Wind};
 use ecr_runtime::integrate::{IntegrateOptions, Integrator, Report, StepPlan, integrate};
 use ecr_runtime::second_order::TcStepper;
 use ecr_runtime::solve::{Options, Problem, Solution, SolveError};
-use ecr_runtime::stepper::{EcStepper, PARALLEL_MIN_DIM, Predictor, SolverSettings, StageSolver};
+use ecr_runtime::stepper::{
+    EcStepper, PARALLEL_MIN_DIM, Predictor, SizedEcStepper, SolverSettings, StageSolver,
+};
 use ecr_runtime::system::System;
 use serde_json::{Value, json};
 use std::io::{IsTerminal, Write};
@@ -311,18 +312,20 @@ fn run_system<I: Integrator>(
     })
 }
 
-/// A fixed-step ECrP run of `system` from `y0` (r, s and h from `args`).
-fn run_ec<S: System>(
+/// A fixed-step ECrP run of `system` from `y0` (r, s and h from `args`), stepped by what
+/// `build` makes of them: [`SizedEcStepper`] for the planar problems (fixed-size buffers, bit
+/// for bit [`EcStepper`]), `EcStepper` for the others (whose systems then do not compile the
+/// fixed-size forms).
+fn run_ec<S: System, I: Integrator>(
     system: ecr_runtime::Result<S>,
     y0: Vec<f64>,
     args: &RunArgs,
     settings: SolverSettings,
+    build: fn(S, usize, usize, f64, SolverSettings) -> ecr_runtime::Result<I>,
 ) -> Result<Outcome, UsageError> {
     let s = args.s.unwrap_or(args.r());
     let system = system.map_err(usage)?;
-    with_ec_stepper!(system, args.r(), s, args.h(), settings, |st| run_system(
-        st, y0, args
-    ))
+    run_system(build(system, args.r(), s, args.h(), settings), y0, args)
 }
 
 fn check_inputs(args: &RunArgs) -> Result<(), UsageError> {
@@ -534,7 +537,13 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), UsageError> {
         ProblemArg::Duffing => {
             let problem =
                 Duffing::new(args.omega.unwrap_or(5.0), args.k.unwrap_or(0.07)).map_err(usage)?;
-            let o = run_ec(problem.system(), problem.initial_value(), args, settings)?;
+            let o = run_ec(
+                problem.system(),
+                problem.initial_value(),
+                args,
+                settings,
+                SizedEcStepper::with_nodes,
+            )?;
             let exact = problem.exact(o.report.t_end).map_err(usage)?;
             let err =
                 o.y.iter()
@@ -545,7 +554,13 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), UsageError> {
         }
         ProblemArg::Wind | ProblemArg::WindDissipative => {
             let problem = wind_problem(args)?;
-            let o = run_ec(problem.system(), problem.initial_value(), args, settings)?;
+            let o = run_ec(
+                problem.system(),
+                problem.initial_value(),
+                args,
+                settings,
+                SizedEcStepper::with_nodes,
+            )?;
             let params = json!({
                 "theta": problem.theta(),
                 "amplitude": problem.radius(),
@@ -555,12 +570,24 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), UsageError> {
         }
         ProblemArg::HenonHeiles => {
             let problem = HenonHeiles::default();
-            let o = run_ec(problem.system(), problem.initial_value(), args, settings)?;
+            let o = run_ec(
+                problem.system(),
+                problem.initial_value(),
+                args,
+                settings,
+                EcStepper::with_nodes,
+            )?;
             (o, json!({ "y0": problem.initial_value() }), None)
         }
         ProblemArg::Nls => {
             let problem = Nls::new(args.n.unwrap_or(128)).map_err(usage)?;
-            let o = run_ec(problem.system(), problem.initial_value(), args, settings)?;
+            let o = run_ec(
+                problem.system(),
+                problem.initial_value(),
+                args,
+                settings,
+                EcStepper::with_nodes,
+            )?;
             (o, json!({ "n": problem.n() }), None)
         }
         ProblemArg::Fpu => {

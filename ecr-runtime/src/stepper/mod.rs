@@ -48,7 +48,8 @@
 //! `ecr_method!` emits) and the [`Buffers`] holding the stage state ([`VecBuffers`], allocated
 //! once; [`StaticBuffers`], fixed-size arrays: what a step hands on inside the stepper, the
 //! stage state local to each step, so that it stays in registers). [`EcStepper`] is the
-//! run-time-r form.
+//! run-time-r form; [`SizedEcStepper`] is that form on fixed-size buffers where d = 2 and
+//! s = r ≤ 8, on heap buffers otherwise.
 //!
 //! The files of this folder, in the order of a step's data flow: the [`SolverSettings`] and
 //! the [`StepReport`] (`settings.rs`); the method's kernel and the combine coefficients
@@ -57,7 +58,7 @@
 //! the concurrent path's state (`parallel.rs`); what a step works with (`context.rs`), where
 //! the iteration starts (`predictor.rs`), the sweeps (`iteration.rs`) with Newton's update
 //! (`newton.rs`) and the step formula (`finish.rs`); and the [`Stepper`] that calls them in
-//! that order (`step.rs`).
+//! that order (`step.rs`); [`SizedEcStepper`], which picks the buffers (`sized.rs`).
 
 mod buffers;
 mod context;
@@ -70,6 +71,7 @@ mod newton;
 mod parallel;
 mod predictor;
 mod settings;
+mod sized;
 mod step;
 mod stopping;
 
@@ -81,6 +83,7 @@ pub use newton::NEWTON_REFRESH_THETA;
 pub use settings::{
     PARALLEL_MIN_DIM, Predictor, SolverSettings, StageScale, StageSolver, StepReport, SweepLimit,
 };
+pub use sized::SizedEcStepper;
 pub use step::{EcStepper, Stepper};
 pub use stopping::{
     ROUNDOFF_RESIDUAL, STAGNATION_THETA, Y1_SHARE, stages_fault, sweeps_converged,

@@ -237,10 +237,11 @@ fn work_precision(w: &mut String, c: &Config, r: &Results) {
          untimed run. Implicit methods (ECrP, TCrP, RKEPC2, Gauss, AVF, ExpAVF) iterate \
          their stage equations to convergence (estimated error ≤ {:e} or round-off \
          stagnation), starting from the previous step's continuous solution extrapolated to \
-         the new nodes. \"EC{{r}}P\" is the run-time-r stepper (`EcStepper`, what `ecr run` \
-         uses); \"EC{{r}}P macro\" the fixed-order stepper of `ecr_method!(r = …)` (d = 2: \
-         `Ec{{r}}<_, 2>` with a `DenseStatic` operator and g a closure; NLS: `Ec{{r}}Dyn`). Each \
-         series halves h from its largest step size until the error is ≤ {ERROR_FLOOR:e}, \
+         the new nodes. \"EC{{r}}P\" is the run-time-r stepper, what `ecr run` uses \
+         (`SizedEcStepper`: for d = 2 and s = r the run-time kernel on fixed-size buffers, \
+         otherwise `EcStepper`); \"EC{{r}}P macro\" the fixed-order stepper of \
+         `ecr_method!(r = …)` (d = 2: `Ec{{r}}<_, 2>` with a `DenseStatic` operator and g a \
+         closure; NLS: `Ec{{r}}Dyn`). Each series halves h from its largest step size until the error is ≤ {ERROR_FLOOR:e}, \
          stagnates at round-off, a run exceeds {} s or {} points were recorded; points with \
          error > {ERROR_CEILING:e} or failures are skipped (listed per problem). DOP853 is \
          one call of `ode_solvers` over [0, T] (fixed-size state, sparse output) per \

@@ -24,7 +24,7 @@ use ecr::baselines::exponential::Exprb43;
 use ecr::baselines::krylov::Exprb43Krylov;
 use ecr::problems::{Duffing, Nls, Wind};
 use ecr_runtime::integrate::Integrator;
-use ecr_runtime::stepper::{SolverSettings, StepReport};
+use ecr_runtime::stepper::{EcStepper, SizedEcStepper, SolverSettings, StepReport};
 use ecr_runtime::system::System;
 
 /// One of the paper's test problems, as the harness hands it to a method's constructor.
@@ -83,44 +83,6 @@ macro_rules! on_system {
 }
 pub(crate) use on_system;
 
-/// Binds `$st` to the ECrP stepper with r moments and s points for `$sys` (a
-/// `Result<Stepper<RuntimeKernel, _, _>>`) and evaluates `$body`, once per stepper type: for
-/// d = 2 and s = r ≤ 8 (Duffing, the wind problem) the run-time kernel on fixed-size buffers,
-/// whose step keeps its stage state in registers (about half the instructions of
-/// [`EcStepper`](ecr_runtime::stepper::EcStepper)'s, bit for bit the same results:
-/// `tests/macro_stepper.rs`, `run_time_kernel_on_fixed_size_buffers_equals_ec_stepper_bit_for_bit`,
-/// and the golden reports of `tests/bit_identity.rs`), otherwise `EcStepper`. What `ecr run` and the
-/// run-time series of `ecr bench` use.
-macro_rules! with_ec_stepper {
-    ($sys:expr, $r:expr, $s:expr, $h:expr, $settings:expr, |$st:ident| $body:expr) => {{
-        use ecr_runtime::stepper::{RuntimeKernel, StaticBuffers, Stepper};
-        let (sys, r, s, h, settings) = ($sys, $r, $s, $h, $settings);
-        macro_rules! fixed {
-            ($n:literal) => {{
-                let $st = Stepper::<RuntimeKernel, _, StaticBuffers<2, $n, $n>>::with_nodes(
-                    sys, r, s, h, settings,
-                );
-                $body
-            }};
-        }
-        match (ecr_runtime::system::System::dim(&sys), r, s) {
-            (2, 1, 1) => fixed!(1),
-            (2, 2, 2) => fixed!(2),
-            (2, 3, 3) => fixed!(3),
-            (2, 4, 4) => fixed!(4),
-            (2, 5, 5) => fixed!(5),
-            (2, 6, 6) => fixed!(6),
-            (2, 7, 7) => fixed!(7),
-            (2, 8, 8) => fixed!(8),
-            _ => {
-                let $st = ecr_runtime::stepper::EcStepper::with_nodes(sys, r, s, h, settings);
-                $body
-            }
-        }
-    }};
-}
-pub(crate) use with_ec_stepper;
-
 /// An integrator as the harness drives it: one step of size h at a time, and, for a method
 /// that chooses its own steps inside each of them (DOP853), how many it took, so that the
 /// error studies plot it against the steps it used rather than against h.
@@ -177,7 +139,8 @@ pub struct Method {
     pub build: fn(&Problem, f64) -> ecr_runtime::Result<BoxedIntegrator>,
 }
 
-/// ECrP with `r` moments on `s` Gauss points.
+/// ECrP with `r` moments on `s` Gauss points: what `ecr bench`'s run-time series use
+/// ([`SizedEcStepper`] for the planar problems).
 pub fn ec(
     problem: &Problem,
     r: usize,
@@ -185,7 +148,13 @@ pub fn ec(
     h: f64,
     settings: SolverSettings,
 ) -> ecr_runtime::Result<BoxedIntegrator> {
-    on_system!(problem, sys => with_ec_stepper!(sys, r, s, h, settings, |st| boxed(st)))
+    // Planar problems on fixed-size buffers (bit for bit EcStepper); the NLS is never planar,
+    // so it takes EcStepper directly rather than compiling the fixed-size forms for its system.
+    match problem {
+        Problem::Duffing(p) => boxed(SizedEcStepper::with_nodes(p.system()?, r, s, h, settings)),
+        Problem::Wind(p) => boxed(SizedEcStepper::with_nodes(p.system()?, r, s, h, settings)),
+        Problem::Nls(p) => boxed(EcStepper::with_nodes(p.system()?, r, s, h, settings)),
+    }
 }
 
 /// The name of the paper's method; the comparisons in the report are made against it.
