@@ -132,7 +132,9 @@
 //!   `Symmetric`, `Circulant`, `Circulant2d`, `SkewPair`, `Oscillator`; each pays only for its
 //!   structure.
 //! - [`stepper`]: the ECrP stepper [`Stepper`](stepper::Stepper) for any r and s ≥ r
-//!   ([`EcStepper`](stepper::EcStepper) with r and s chosen at run time), its
+//!   ([`EcStepper`](stepper::EcStepper) with r and s chosen at run time;
+//!   [`SizedEcStepper`](stepper::SizedEcStepper), the same on fixed-size buffers for planar
+//!   systems with s = r ≤ 8), its
 //!   [`SolverSettings`](stepper::SolverSettings) (tolerance, predictor, fixed point or Newton,
 //!   compensated update) and [`StepReport`](stepper::StepReport).
 //! - [`second_order`]: `q'' + Ωq = −∇U(q)` ([`SecondOrder`](second_order::SecondOrder),

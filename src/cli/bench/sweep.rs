@@ -782,7 +782,10 @@ fn nls(c: &Config) -> Result<ProblemRun, String> {
     let (r, h) = NLS_REF;
     let h = if c.quick { h * 8.0 } else { h };
     let (y_ref, est) = ec_reference(&problem, r, h, t)?;
-    let h0 = if c.quick { 0.05 } else { 0.2 };
+    // From h = 0.8: at 0.2 the higher orders were already below 1e−6, so the bench could only
+    // bound their cost at that accuracy from above. Points that fail or exceed the error
+    // ceiling at the large steps are skipped and do not count as attempts.
+    let h0 = if c.quick { 0.05 } else { 0.8 };
     let mut series = Vec::new();
     for r in 1..=NLS_MAX_R {
         series.push(ec_series(&problem, r, r, h0, "ECrP circulant"));
