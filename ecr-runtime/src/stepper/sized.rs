@@ -39,8 +39,6 @@ type Fixed<S, const N: usize> = Stepper<RuntimeKernel, S, StaticBuffers<2, N, N>
 /// stepper.step(&mut y)?;
 /// # Ok::<(), ecr_runtime::Error>(())
 /// ```
-// The fixed-size variants hold no more than EcStepper's heap buffers' handles would.
-#[allow(clippy::large_enum_variant)]
 pub enum SizedEcStepper<S: System> {
     /// Any sizes: heap buffers.
     Heap(EcStepper<S>),

@@ -241,8 +241,8 @@ fn work_precision(w: &mut String, c: &Config, r: &Results) {
          (`SizedEcStepper`: for d = 2 and s = r the run-time kernel on fixed-size buffers, \
          otherwise `EcStepper`); \"EC{{r}}P macro\" the fixed-order stepper of \
          `ecr_method!(r = …)` (d = 2: `Ec{{r}}<_, 2>` with a `DenseStatic` operator and g a \
-         closure; NLS: `Ec{{r}}Dyn`). Each series halves h from its largest step size until the error is ≤ {ERROR_FLOOR:e}, \
-         stagnates at round-off, a run exceeds {} s or {} points were recorded; points with \
+         closure; NLS: `Ec{{r}}Dyn`). Each series halves h from its largest step size until \
+         the error is ≤ {ERROR_FLOOR:e}, stagnates at round-off, a run exceeds {} s or {} points were recorded; points with \
          error > {ERROR_CEILING:e} or failures are skipped (listed per problem). DOP853 is \
          one call of `ode_solvers` over [0, T] (fixed-size state, sparse output) per \
          rtol = atol from 1e-4 to 1e-15. Cost to reach a target: log CPU interpolated \
