@@ -73,7 +73,9 @@ impl<K: Kernel, S: System, B: Buffers> StepContext<'_, K, S, B> {
 
     /// Sweeps from the first iterate in `stages` (g there in `g`) until the stopping rule
     /// holds or the sweep limit is reached; each sweep's update measured in the settings'
-    /// scale (`PER_COMPONENT`), corrected by Newton where `newton` is given (`NEWTON`).
+    /// scale (`per_component`, else the global one), corrected by Newton where `newton` is
+    /// given. Always inlined: where the caller's flags are constants, the code of the other
+    /// choices is gone.
     /// `theta_floor` is the contraction seen in the step before (1 if none is known). `effort`
     /// receives the sweeps and evaluations of g done, also when the iteration fails.
     ///
@@ -81,8 +83,9 @@ impl<K: Kernel, S: System, B: Buffers> StepContext<'_, K, S, B> {
     /// As [`stage_fault`] when the stages become non-finite; Newton's errors.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    pub(super) fn iterate<const NEWTON: bool, const PER_COMPONENT: bool>(
+    pub(super) fn iterate(
         &mut self,
+        per_component: bool,
         y0: &[f64],
         stages: &mut [f64],
         new_stages: &mut [f64],
@@ -113,32 +116,30 @@ impl<K: Kernel, S: System, B: Buffers> StepContext<'_, K, S, B> {
         }
         loop {
             // The last update in the global scale.
-            let last_global = if PER_COMPONENT {
+            let last_global = if per_component {
                 previous_global
             } else {
                 previous
             };
             self.map_stages(y0, g, moments, props, new_stages);
-            if NEWTON {
-                if let Some(nt) = newton.as_deref_mut() {
-                    let (system, scratch) = (self.system, &mut *self.scratch);
-                    let first = sweeps == 0;
-                    nt.update(
-                        system,
-                        scratch,
-                        stages,
-                        new_stages,
-                        g,
-                        first,
-                        last_global,
-                        s,
-                        d,
-                    )?;
-                }
+            if let Some(nt) = newton.as_deref_mut() {
+                let (system, scratch) = (self.system, &mut *self.scratch);
+                let first = sweeps == 0;
+                nt.update(
+                    system,
+                    scratch,
+                    stages,
+                    new_stages,
+                    g,
+                    first,
+                    last_global,
+                    s,
+                    d,
+                )?;
             }
             let global = global_update(new_stages, stages);
             // The stopping rule's measure (per component: a second pass).
-            let residual = if PER_COMPONENT {
+            let residual = if per_component {
                 per_component_update(new_stages, stages, atol)
             } else {
                 global
@@ -164,7 +165,7 @@ impl<K: Kernel, S: System, B: Buffers> StepContext<'_, K, S, B> {
             if previous.is_finite() {
                 theta_step = theta_step.max(residual / previous);
             }
-            let converged = if PER_COMPONENT {
+            let converged = if per_component {
                 sweeps_converged_scaled(residual, previous, global, tolerance)
             } else {
                 sweeps_converged(residual, previous, tolerance)
@@ -178,7 +179,7 @@ impl<K: Kernel, S: System, B: Buffers> StepContext<'_, K, S, B> {
                 });
             }
             previous = residual;
-            if PER_COMPONENT {
+            if per_component {
                 previous_global = global;
             }
         }
