@@ -1,7 +1,8 @@
 //! Random arguments of `ecr run` and `ecr tables` (proptest, fixed seed), run through the
 //! binary: finite, infinite, NaN, huge, tiny, negative and malformed values of every option.
 //! Never a panic (status 101) or a signal (an abort), one line on stderr for every refusal,
-//! and never status 0 with a non-finite number in the report.
+//! and never status 0 with a non-finite number in the report. Also token soup (valid flags and
+//! values mixed with malformed ones, in any order) through the same binary.
 
 mod common;
 
@@ -228,5 +229,163 @@ proptest! {
             }
             other => prop_assert!(false, "{args:?}: status {other:?}: {stderr}"),
         }
+    }
+}
+
+/// A command line as token soup: a subcommand (or none, a misspelt one, `--help`) and up to
+/// nine tokens mixing valid flags and values with malformed ones. Valid runs stay at a few
+/// steps; `reproduce` and `bench` are left out (they write files and run for seconds).
+const SUBCOMMANDS: &[&str] = &[
+    "run", "run", "run", "tables", "tables", "", "runn", "--help",
+];
+
+const TOKENS: &[&str] = &[
+    "--problem",
+    "duffing",
+    "wind",
+    "wind-dissipative",
+    "nls",
+    "fpu",
+    "schrodinger",
+    "--method",
+    "ec",
+    "tc",
+    "rknc",
+    "rk4",
+    "--r",
+    "1",
+    "2",
+    "3",
+    "0",
+    "33",
+    "-1",
+    "x",
+    "2.5",
+    "--s",
+    "4",
+    "70",
+    "1e3",
+    "--h",
+    "0.01",
+    "0.05",
+    "0",
+    "-0.1",
+    "nan",
+    "inf",
+    "1e-320",
+    "abc",
+    "--t-end",
+    "0.05",
+    "0",
+    "-1",
+    "NaN",
+    "1e400",
+    "--omega",
+    "--k",
+    "--theta",
+    "--amplitude",
+    "--n",
+    "8",
+    "5",
+    "1e9",
+    "0.5",
+    "10",
+    "--tolerance",
+    "--max-sweeps",
+    "--paper-solver",
+    "--extrapolate",
+    "--constant-start",
+    "--newton",
+    "--family",
+    "--format",
+    "json",
+    "rust",
+    "markdown",
+    "yaml",
+    "--",
+    "-",
+    "--unknown",
+    "",
+    "é",
+    "--h=0.01",
+    "--r=2",
+];
+
+fn token_soup() -> impl Strategy<Value = Vec<String>> {
+    (
+        prop::sample::select(SUBCOMMANDS),
+        prop::collection::vec(prop::sample::select(TOKENS), 0..10),
+    )
+        .prop_map(|(sub, rest)| {
+            let mut v = Vec::new();
+            if !sub.is_empty() {
+                v.push(sub.to_string());
+            }
+            v.extend(rest.iter().map(|t| t.to_string()));
+            v
+        })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig {
+        cases: 400,
+        rng_seed: RngSeed::Fixed(0x0EC8_0C11),
+        failure_persistence: None,
+        ..ProptestConfig::default()
+    })]
+
+    #[test]
+    fn token_soup_never_panics_and_refuses_in_one_line(args in token_soup()) {
+        let (status, stdout, stderr) = ecr(&args);
+        prop_assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+        match status {
+            Some(0) => prop_assert!(stderr.is_empty(), "{args:?}: {stderr}"),
+            Some(2) => {
+                prop_assert!(stdout.is_empty(), "{args:?}: {stdout}");
+                prop_assert!(stderr.starts_with("error: "), "{args:?}: {stderr}");
+                prop_assert_eq!(stderr.trim_end().lines().count(), 1, "{:?}: {}", args, stderr);
+            }
+            other => prop_assert!(false, "{args:?}: status {other:?}: {stderr}"),
+        }
+    }
+}
+
+/// A few valid command lines of the token soup's vocabulary do run (so the soup reaches the
+/// commands, not only the argument parser).
+#[test]
+fn the_vocabulary_reaches_the_commands() {
+    for args in [
+        &[
+            "run",
+            "--problem",
+            "duffing",
+            "--r",
+            "2",
+            "--h",
+            "0.01",
+            "--t-end",
+            "0.05",
+        ][..],
+        &[
+            "run",
+            "--problem",
+            "fpu",
+            "--method",
+            "tc",
+            "--r",
+            "1",
+            "--h",
+            "0.01",
+            "--t-end",
+            "0",
+        ],
+        &[
+            "tables", "--family", "tc", "--r", "2", "--format", "markdown",
+        ],
+    ] {
+        let args: Vec<String> = args.iter().map(|a| a.to_string()).collect();
+        let (status, stdout, stderr) = ecr(&args);
+        assert_eq!(status, Some(0), "{args:?}: {stderr}");
+        assert!(!stdout.is_empty(), "{args:?}");
     }
 }

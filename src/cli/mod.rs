@@ -1,8 +1,6 @@
 //! Command-line interface.
 
 mod bench;
-#[cfg(test)]
-mod fuzz;
 mod memory;
 mod output;
 mod progress;
