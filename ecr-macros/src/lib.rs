@@ -42,7 +42,8 @@
 //! ```
 //!
 //! Every misuse (a missing or bad `r`, `s < r`, an unknown key or family, a duplicate key) is
-//! a compile error on the offending token; the cases are the trybuild tests in `tests/ui`.
+//! a compile error on the offending token; the cases are the trybuild tests of the workspace's
+//! `downstream` crate (`downstream/tests/ui`).
 #![deny(missing_docs)]
 
 mod args;

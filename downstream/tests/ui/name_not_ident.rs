@@ -1,4 +1,4 @@
-use ecr_runtime::ecr_method;
+use ecr::ecr_method;
 
 ecr_method!(r = 2, name = 3);
 
