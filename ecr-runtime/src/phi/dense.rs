@@ -323,6 +323,12 @@ pub fn phi_symmetric(a: &DMatrix<f64>, p: usize) -> Result<Vec<DMatrix<f64>>> {
 /// slices), written into `(ch, cl)`: the `ah·bh` part by the compensated dot product Dot2
 /// (Ogita, Rump & Oishi, 2005: as accurate as if computed in twice the working precision), the
 /// cross terms in f64; the low parts are ≤ 2⁻⁵³ of the high ones.
+///
+/// Every entry's sum runs over k in order, as a dot product would; the loop over the rows i is
+/// the innermost, with `(ch, cl)`'s column as the n running sums: A's columns are read
+/// contiguously and the n chains of dependent additions are independent of each other, so they
+/// pipeline (and vectorise) instead of waiting on one another, with the same operations on
+/// every entry as row-times-column would do (the same bits).
 fn mul_dd(
     n: usize,
     (ah, al): (&[f64], &[f64]),
@@ -330,18 +336,23 @@ fn mul_dd(
     (ch, cl): (&mut [f64], &mut [f64]),
 ) {
     for j in 0..n {
-        for i in 0..n {
-            let (mut s, mut c) = (0.0, 0.0);
-            for k in 0..n {
-                let (a, b) = (ah[k * n + i], bh[j * n + k]);
+        let (sum, comp) = (&mut ch[j * n..][..n], &mut cl[j * n..][..n]);
+        sum.fill(0.0);
+        comp.fill(0.0);
+        for k in 0..n {
+            let (b, b_lo) = (bh[j * n + k], bl[j * n + k]);
+            let (a_col, a_lo_col) = (&ah[k * n..][..n], &al[k * n..][..n]);
+            for (((s, c), &a), &a_lo) in
+                sum.iter_mut().zip(comp.iter_mut()).zip(a_col).zip(a_lo_col)
+            {
                 let (p, e) = two_prod(a, b);
-                let (t, q) = two_sum(s, p);
-                s = t;
-                c += q + e + (a * bl[j * n + k] + al[k * n + i] * b);
+                let (t, q) = two_sum(*s, p);
+                *s = t;
+                *c += q + e + (a * b_lo + a_lo * b);
             }
-            let (h, l) = two_sum(s, c);
-            ch[j * n + i] = h;
-            cl[j * n + i] = l;
+        }
+        for (s, c) in sum.iter_mut().zip(comp.iter_mut()) {
+            (*s, *c) = two_sum(*s, *c);
         }
     }
 }
