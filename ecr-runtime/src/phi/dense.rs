@@ -328,7 +328,12 @@ pub fn phi_symmetric(a: &DMatrix<f64>, p: usize) -> Result<Vec<DMatrix<f64>>> {
 /// the innermost, with `(ch, cl)`'s column as the n running sums: A's columns are read
 /// contiguously and the n chains of dependent additions are independent of each other, so they
 /// pipeline (and vectorise) instead of waiting on one another, with the same operations on
-/// every entry as row-times-column would do (the same bits).
+/// every entry as row-times-column would do (the same bits). Compiled twice and chosen at run
+/// time by the CPU (`multiversion`): with fused multiply-add and AVX2 where the processor has
+/// them (`two_prod`'s `mul_add` is then one instruction and the chains vectorise), else for the
+/// baseline x86-64, where `mul_add` is a call into the maths library. Both round `mul_add`
+/// correctly: the same bits either way.
+#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
 fn mul_dd(
     n: usize,
     (ah, al): (&[f64], &[f64]),
@@ -473,6 +478,51 @@ mod dd_tests {
             assert!(det.abs() < tol, "θ = {theta}: {det:e}");
             // The low part is below an ulp of the high one.
             assert!(l.abs().max() <= f64::EPSILON);
+        }
+    }
+
+    /// `mul_dd` (rows innermost, the CPU's version) gives every entry bit for bit as the dot
+    /// product of a row and a column, each sum over k in order, with `mul_add` as it rounds
+    /// in any build: the loop order and the dispatch change no bit. Entries of mixed signs and
+    /// magnitudes (cancellation in the compensated sums), n not a multiple of a vector width.
+    #[test]
+    fn mul_dd_is_row_times_column_bit_for_bit() {
+        let mut state = 0x9E37_79B9_7F4A_7C15_u64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            // In (−1, 1) times a power of two between 2⁻⁸ and 2⁸.
+            let unit = (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0;
+            unit * f64::powi(2.0, (state % 17) as i32 - 8)
+        };
+        for n in [1, 2, 7, 19] {
+            let mut m = || {
+                let hi: Vec<f64> = (0..n * n).map(|_| next()).collect();
+                let lo: Vec<f64> = hi
+                    .iter()
+                    .map(|h| h * f64::EPSILON * 0.25 * next())
+                    .collect();
+                (hi, lo)
+            };
+            let ((ah, al), (bh, bl)) = (m(), m());
+            let (mut ch, mut cl) = (vec![f64::NAN; n * n], vec![f64::NAN; n * n]);
+            mul_dd(n, (&ah, &al), (&bh, &bl), (&mut ch, &mut cl));
+            for j in 0..n {
+                for i in 0..n {
+                    let (mut s, mut c) = (0.0, 0.0);
+                    for k in 0..n {
+                        let (a, b) = (ah[k * n + i], bh[j * n + k]);
+                        let (p, e) = (a * b, a.mul_add(b, -(a * b)));
+                        let (t, q) = two_sum(s, p);
+                        s = t;
+                        c += q + e + (a * bl[j * n + k] + al[k * n + i] * b);
+                    }
+                    let (h, l) = two_sum(s, c);
+                    assert_eq!(ch[j * n + i].to_bits(), h.to_bits(), "n = {n}, ({i}, {j})");
+                    assert_eq!(cl[j * n + i].to_bits(), l.to_bits(), "n = {n}, ({i}, {j})");
+                }
+            }
         }
     }
 }
