@@ -354,36 +354,12 @@ proptest! {
 /// commands, not only the argument parser).
 #[test]
 fn the_vocabulary_reaches_the_commands() {
-    for args in [
-        &[
-            "run",
-            "--problem",
-            "duffing",
-            "--r",
-            "2",
-            "--h",
-            "0.01",
-            "--t-end",
-            "0.05",
-        ][..],
-        &[
-            "run",
-            "--problem",
-            "fpu",
-            "--method",
-            "tc",
-            "--r",
-            "1",
-            "--h",
-            "0.01",
-            "--t-end",
-            "0",
-        ],
-        &[
-            "tables", "--family", "tc", "--r", "2", "--format", "markdown",
-        ],
+    for line in [
+        "run --problem duffing --r 2 --h 0.01 --t-end 0.05",
+        "run --problem fpu --method tc --r 1 --h 0.01 --t-end 0",
+        "tables --family tc --r 2 --format markdown",
     ] {
-        let args: Vec<String> = args.iter().map(|a| a.to_string()).collect();
+        let args: Vec<String> = line.split(' ').map(str::to_string).collect();
         let (status, stdout, stderr) = ecr(&args);
         assert_eq!(status, Some(0), "{args:?}: {stderr}");
         assert!(!stdout.is_empty(), "{args:?}");
