@@ -174,6 +174,20 @@ fn ecr(args: &[String]) -> (Option<i32>, String, String) {
     )
 }
 
+/// A refusal (status 2): nothing on stdout, one line on stderr starting with `error: `.
+fn one_line_refusal(args: &[String], stdout: &str, stderr: &str) -> Result<(), TestCaseError> {
+    prop_assert!(stdout.is_empty(), "{args:?}: {stdout}");
+    prop_assert!(stderr.starts_with("error: "), "{args:?}: {stderr}");
+    prop_assert_eq!(
+        stderr.trim_end().lines().count(),
+        1,
+        "{:?}: {}",
+        args,
+        stderr
+    );
+    Ok(())
+}
+
 /// Every number of the report is finite (serde_json writes a non-finite one as null).
 fn finite_report(v: &serde_json::Value) -> Result<(), String> {
     for key in [
@@ -222,11 +236,7 @@ proptest! {
                     }
                 }
             }
-            Some(2) => {
-                prop_assert!(stdout.is_empty(), "{args:?}: {stdout}");
-                prop_assert!(stderr.starts_with("error: "), "{args:?}: {stderr}");
-                prop_assert_eq!(stderr.trim_end().lines().count(), 1, "{:?}: {}", args, stderr);
-            }
+            Some(2) => one_line_refusal(&args, &stdout, &stderr)?,
             other => prop_assert!(false, "{args:?}: status {other:?}: {stderr}"),
         }
     }
@@ -340,11 +350,7 @@ proptest! {
         prop_assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
         match status {
             Some(0) => prop_assert!(stderr.is_empty(), "{args:?}: {stderr}"),
-            Some(2) => {
-                prop_assert!(stdout.is_empty(), "{args:?}: {stdout}");
-                prop_assert!(stderr.starts_with("error: "), "{args:?}: {stderr}");
-                prop_assert_eq!(stderr.trim_end().lines().count(), 1, "{:?}: {}", args, stderr);
-            }
+            Some(2) => one_line_refusal(&args, &stdout, &stderr)?,
             other => prop_assert!(false, "{args:?}: status {other:?}: {stderr}"),
         }
     }
