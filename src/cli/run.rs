@@ -280,7 +280,7 @@ fn run_system<I: Integrator>(
     PROGRESS.total.store(total, Ordering::Relaxed);
     PROGRESS.steps.store(0, Ordering::Relaxed);
     PROGRESS.t_bits.store(0.0f64.to_bits(), Ordering::Relaxed);
-    let bar = progress::bar(total, &format!("ecr run --problem {}", args.problem.name()));
+    let bar = progress::StepBar::new(total, &format!("ecr run --problem {}", args.problem.name()));
     let mut calls = 0u64;
     let start = Instant::now();
     let report = integrate(
@@ -300,7 +300,7 @@ fn run_system<I: Integrator>(
             calls += 1;
             PROGRESS.t_bits.store(t.to_bits(), Ordering::Relaxed);
             PROGRESS.steps.store(steps, Ordering::Relaxed);
-            bar.set_position(steps);
+            bar.set(steps);
         },
     );
     bar.finish_and_clear();

@@ -93,7 +93,7 @@ fn integrate<P: GenericSystem<Dd>>(
     let mut y: Vec<Dd> = y0.iter().map(|&v| Dd::from(v)).collect();
     let total = (args.t_end / args.h()).round().max(0.0) as u64;
     PROGRESS.total.store(total, Ordering::Relaxed);
-    let bar = progress::bar(
+    let bar = progress::StepBar::new(
         total,
         &format!(
             "ecr run --problem {} --precision double-double",
@@ -104,7 +104,7 @@ fn integrate<P: GenericSystem<Dd>>(
     let report = stepper.integrate(Dd::from(0.0), Dd::from(args.t_end), &mut y, |n, t, _| {
         PROGRESS.t_bits.store(t.hi().to_bits(), Ordering::Relaxed);
         PROGRESS.steps.store(n as u64, Ordering::Relaxed);
-        bar.set_position(n as u64);
+        bar.set(n as u64);
     });
     bar.finish_and_clear();
     let report = report.map_err(|e| UsageError(format!("integration failed: {e}")))?;
