@@ -231,7 +231,9 @@ fn work_precision(w: &mut String, c: &Config, r: &Results) {
         w,
         "CPU time is the **wall-clock time of a single-threaded run, set-up included**: \
          building the method (coefficient tables, φ-/kernel banks, FFT plans) and integrating \
-         over [0, T], the median of {} run(s) per point; the set-up alone is reported too \
+         over [0, T], the fastest of {} run(s) per point, timed in rounds that run every \
+         point of the problem once (a slow phase of the machine falls on every method \
+         alike); the set-up alone is reported too \
          (`setup_seconds` in the CSV). Global error: max-norm of y(T) − y_ref(T). Energy \
          error: max over every step of |H(y_n) − H(y_0)| / |H(y_0)|, measured in a separate \
          untimed run. Implicit methods (ECrP, TCrP, RKEPC2, Gauss, AVF, ExpAVF) iterate \
@@ -410,7 +412,7 @@ fn problem_section(w: &mut String, p: &ProblemRun) {
         w,
         "\nCPU time (set-up included) to reach each target and, in parentheses, its ratio to \
          the cheapest method's; \"floor\": below the method's round-off floor. Set-up: the \
-         range of the median set-up time over the method's points.\n"
+         range of the fastest set-up time over the method's points.\n"
     );
     let _ = write!(w, "| method | kind | round-off floor | set-up s |");
     for t in &targets {

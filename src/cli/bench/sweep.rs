@@ -1,6 +1,7 @@
 //! The work–precision runs: for each problem and each method (series), a sweep of step sizes
-//! (DOP853: tolerances), each point timed (median of repeated runs, set-up included and also
-//! reported alone) and measured (global error against a reference, max relative energy error).
+//! (DOP853: tolerances), each point measured (global error against a reference, max relative
+//! energy error) and timed (the fastest of repeated runs, interleaved across every point of
+//! the problem; set-up included and also reported alone).
 
 use super::series::{
     BoxedRun, BuildFn, Family, GCostFn, K, Knob, OMEGA, Observe, Run, Series, solver,
@@ -54,7 +55,7 @@ pub enum ProblemId {
 #[derive(Clone, Copy, Debug)]
 pub struct Config {
     pub quick: bool,
-    /// Timed runs per point (the median is reported).
+    /// Timed runs per point, in rounds over all points of a problem (the fastest is reported).
     pub repeats: usize,
     /// Most points recorded per series.
     pub attempts: usize,
@@ -83,7 +84,7 @@ impl Config {
         } else {
             Config {
                 quick,
-                repeats: 3,
+                repeats: 5,
                 attempts: 14,
                 budget: 1.5,
                 duffing_t: 1000.0,
@@ -177,10 +178,11 @@ pub struct Point {
     pub s: Option<usize>,
     pub h: f64,
     pub tol: Option<f64>,
-    /// Median wall-clock seconds of set-up (building the method: tables, φ-banks, FFT plans)
-    /// and integration together (single-threaded): what a user pays.
+    /// Wall-clock seconds of set-up (building the method: tables, φ-banks, FFT plans) and
+    /// integration together (single-threaded), the fastest of the timed runs: what a user
+    /// pays.
     pub cpu: f64,
-    /// Median wall-clock seconds of the set-up alone.
+    /// Wall-clock seconds of the set-up alone, the fastest of the timed runs.
     pub setup: f64,
     /// max-norm of y(T) − y_ref(T).
     pub error: f64,
@@ -422,22 +424,78 @@ fn with_energy(build: &Build, x: f64, problem: &Problem, t_end: f64) -> Result<O
     })
 }
 
+/// Times every recorded point `repeats` times, in rounds that each run every point of every
+/// series once, and keeps the fastest run (and the fastest set-up) per point: noise only adds
+/// time, and a slow phase of the machine (this one has phases of 1.5–2× lasting tens of
+/// seconds) then falls on all series alike instead of on the few that a per-series loop runs
+/// during it. A point whose timed run fails is dropped (noted).
+fn time_interleaved(
+    points: &mut Vec<Point>,
+    timings: &[Timing<'_>],
+    y0: &[f64],
+    t_end: f64,
+    repeats: usize,
+    notes: &mut Vec<String>,
+) {
+    let mut failed = vec![None; points.len()];
+    for _ in 0..repeats {
+        for t in timings {
+            if failed[t.point].is_some() {
+                continue;
+            }
+            match timed(t.build, t.x, y0, t_end) {
+                Ok((_, setup, total)) => {
+                    let p = &mut points[t.point];
+                    p.cpu = p.cpu.min(total);
+                    p.setup = p.setup.min(setup);
+                }
+                Err(e) => failed[t.point] = Some(e),
+            }
+        }
+    }
+    let mut index = 0;
+    points.retain(|p| {
+        let keep = match failed[index].take() {
+            Some(e) => {
+                let what = match p.tol {
+                    Some(tol) => format!("tol = {tol:e}"),
+                    None => format!("h = {:e}", p.h),
+                };
+                notes.push(format!("{}: skipped {what} (timed run: {e})", p.series));
+                false
+            }
+            None => true,
+        };
+        index += 1;
+        keep
+    });
+}
+
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
 }
 
+/// A recorded point waiting for its timed runs: `points[point]`, built by `build(x)`.
+struct Timing<'a> {
+    point: usize,
+    build: &'a Build,
+    x: f64,
+}
+
 /// Sweeps one series: step sizes h0/2^i (or the DOP853 tolerances) until the error is below
 /// [`ERROR_FLOOR`], stagnates at round-off, a run exceeds the time budget, or `attempts`
-/// points are recorded. Failed or too inaccurate points are skipped (noted).
+/// points are recorded. Failed or too inaccurate points are skipped (noted). The recorded
+/// points are appended to `points` untimed, their timings to `timings`.
 #[allow(clippy::too_many_arguments)]
-fn sweep(
-    series: &Series,
+fn sweep<'a>(
+    series: &'a Series,
     problem: &Problem,
     t_end: f64,
     y_ref: &[f64],
     c: &Config,
     points: &mut Vec<Point>,
+    timings: &mut Vec<Timing<'a>>,
     notes: &mut Vec<String>,
 ) {
     let params: Vec<f64> = match series.knob {
@@ -445,7 +503,6 @@ fn sweep(
         Knob::Tol if c.quick => vec![1e-5, 1e-9],
         Knob::Tol => DOP_TOLS.to_vec(),
     };
-    let y0 = problem.initial_value();
     let mut last_error: Option<f64> = None;
     let mut skipped = Vec::new();
     for &x in &params {
@@ -475,23 +532,6 @@ fn sweep(
             }
             continue;
         }
-        let mut times = Vec::with_capacity(c.repeats);
-        let mut setups = Vec::with_capacity(c.repeats);
-        for _ in 0..c.repeats {
-            match timed(&series.build, x, &y0, t_end) {
-                Ok((_, setup, t)) => {
-                    times.push(t);
-                    setups.push(setup);
-                }
-                Err(e) => {
-                    skipped.push(format!("{what} (timed run: {e})"));
-                    break;
-                }
-            }
-        }
-        if times.len() < c.repeats {
-            continue;
-        }
         let g_seconds = match &series.g_cost {
             Some(cost) => match cost(&states, g_evals, G_REPEATS) {
                 Ok(s) => Some(s),
@@ -506,14 +546,20 @@ fn sweep(
             Knob::Step { .. } => (x, None),
             Knob::Tol => (t_end, Some(x)),
         };
+        timings.push(Timing {
+            point: points.len(),
+            build: &series.build,
+            x,
+        });
         points.push(Point {
             series: series.label.clone(),
             r: series.r,
             s: series.s,
             h,
             tol,
-            cpu: median(times),
-            setup: median(setups),
+            // Timed later, with every other point of the problem (`time_interleaved`).
+            cpu: f64::NAN,
+            setup: f64::NAN,
             error,
             energy,
             g_evals: series.g_cost.as_ref().map(|_| g_evals),
@@ -684,9 +730,29 @@ fn run_problem(
     c: &Config,
 ) -> ProblemRun {
     let mut points = Vec::new();
+    let mut timings = Vec::new();
     let mut notes = Vec::new();
     for s in series {
-        sweep(s, problem, t_end, &y_ref, c, &mut points, &mut notes);
+        sweep(
+            s,
+            problem,
+            t_end,
+            &y_ref,
+            c,
+            &mut points,
+            &mut timings,
+            &mut notes,
+        );
+    }
+    time_interleaved(
+        &mut points,
+        &timings,
+        &problem.initial_value(),
+        t_end,
+        c.repeats,
+        &mut notes,
+    );
+    for s in series {
         if !points.iter().any(|p| p.series == s.label) {
             notes.push(format!(
                 "{}: no point with error ≤ {ERROR_CEILING:e}",
