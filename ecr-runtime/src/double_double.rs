@@ -334,13 +334,8 @@ mod tests {
 
     /// Deterministic operands: a normalised pair with a random low part, in [−4, 4].
     fn operands(n: usize) -> Vec<DoubleDouble> {
-        let mut state = 0x2545_F491_4F6C_DD1Du64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = crate::test_rng::XorShift(0x2545_F491_4F6C_DD1D);
+        let mut next = move || rng.unit();
         (0..n)
             .map(|_| {
                 let hi = 8.0 * next() - 4.0;

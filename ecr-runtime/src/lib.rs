@@ -174,6 +174,8 @@ pub mod stepper;
 pub mod storage;
 pub mod system;
 pub mod tables;
+#[cfg(test)]
+mod test_rng;
 
 pub use error::{Error, Result};
 /// The linear-algebra crate of the public signatures (`DMatrix`, `SMatrix`), re-exported so

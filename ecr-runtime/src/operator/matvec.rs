@@ -78,14 +78,8 @@ mod tests {
     /// banks hold them.
     #[test]
     fn matvec_dd_is_row_times_x_bit_for_bit() {
-        let mut state = 0x2545_F491_4F6C_DD1D_u64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            let unit = (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0;
-            unit * f64::powi(2.0, (state % 17) as i32 - 8)
-        };
+        let mut rng = crate::test_rng::XorShift(0x2545_F491_4F6C_DD1D);
+        let mut next = move || rng.mixed(8);
         let reference = |mh: &[f64], ml: &[f64], rows: usize, x: &[f64]| {
             (0..rows)
                 .map(|r| {

@@ -487,15 +487,9 @@ mod dd_tests {
     /// magnitudes (cancellation in the compensated sums), n not a multiple of a vector width.
     #[test]
     fn mul_dd_is_row_times_column_bit_for_bit() {
-        let mut state = 0x9E37_79B9_7F4A_7C15_u64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            // In (−1, 1) times a power of two between 2⁻⁸ and 2⁸.
-            let unit = (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0;
-            unit * f64::powi(2.0, (state % 17) as i32 - 8)
-        };
+        // In (−1, 1) times a power of two between 2⁻⁸ and 2⁸.
+        let mut rng = crate::test_rng::XorShift(0x9E37_79B9_7F4A_7C15);
+        let mut next = move || rng.mixed(8);
         for n in [1, 2, 7, 19] {
             let mut m = || {
                 let hi: Vec<f64> = (0..n * n).map(|_| next()).collect();

@@ -578,13 +578,8 @@ mod tests {
     /// and non-finite numbers.
     #[test]
     fn modulus_le_decides_as_hypot() {
-        let mut state = 0x2545_f491_4f6c_dd1d_u64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = crate::test_rng::XorShift(0x2545_f491_4f6c_dd1d);
+        let mut next = move || rng.unit();
         let mut cases = Vec::new();
         for _ in 0..20000 {
             let s = Complex64::from_polar(10f64.powf(40.0 * next() - 20.0), 7.0 * next());

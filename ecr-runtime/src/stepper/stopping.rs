@@ -245,14 +245,8 @@ mod tests {
             }
             diff / f64::from_bits(mag)
         };
-        let mut state = 0x9E37_79B9_7F4A_7C15_u64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            let unit = (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0;
-            unit * f64::powi(2.0, (state % 41) as i32 - 20)
-        };
+        let mut rng = crate::test_rng::XorShift(0x9E37_79B9_7F4A_7C15);
+        let mut next = move || rng.mixed(20);
         let special = [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, -0.0, 0.0];
         for n in 0..14 {
             for trial in 0..40 {
