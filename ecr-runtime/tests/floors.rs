@@ -10,6 +10,7 @@ use std::path::Path;
 
 /// Bottom up: a module may import the modules of the floors before its own.
 const FLOORS: &[&[&str]] = &[
+    &["test_rng"],
     &["error", "concurrent", "double_double"],
     &["storage", "tables"],
     &["phi"],
