@@ -70,6 +70,24 @@ impl<S: SecondOrderSystem, K: Kernel, B: Buffers> Integrator for TcStepper<S, K,
     }
 }
 
+/// A boxed integrator is one too: [`integrate`] drives a method chosen at run time
+/// (`Box<dyn Integrator>`, or a box of a trait object whose trait extends [`Integrator`]) with
+/// the same steps, bit for bit, as the method itself.
+impl<I: Integrator + ?Sized> Integrator for Box<I> {
+    fn step_size(&self) -> f64 {
+        (**self).step_size()
+    }
+    fn set_step_size(&mut self, h: f64) -> Result<()> {
+        (**self).set_step_size(h)
+    }
+    fn step_state(&mut self, y: &mut [f64]) -> Result<StepReport> {
+        (**self).step_state(y)
+    }
+    fn energy_of(&self, y: &[f64]) -> Option<f64> {
+        (**self).energy_of(y)
+    }
+}
+
 /// Summary of an integration.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Report {
