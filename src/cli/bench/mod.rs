@@ -3,7 +3,7 @@
 //! NLS; the scaling of the step cost with the dimension (1D and 2D NLS, FFT operator); CSV,
 //! figures (PNG, SVG) and `summary.md`.
 //!
-//! Reuses the `ecr reproduce` harness: its problem type, method registry, `Dyn` wrapper,
+//! Reuses the `ecr reproduce` harness: its problem type, method registry, boxed integrators,
 //! output-directory and CSV helpers and plotting code.
 
 mod macros;

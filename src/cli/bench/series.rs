@@ -4,7 +4,7 @@
 //! systems as a user writes them. The run-time, macro and peer series are built on it
 //! (`sweep.rs`, `macros.rs`, `peers.rs`).
 
-use crate::cli::reproduce::methods::{BoxedIntegrator, Dyn};
+use crate::cli::reproduce::methods::BoxedIntegrator;
 use ecr_runtime::integrate::{IntegrateOptions, integrate};
 use ecr_runtime::nalgebra::{DMatrix, SMatrix};
 use ecr_runtime::operator::DenseStatic;
@@ -71,7 +71,7 @@ pub trait Run {
 }
 
 /// A fixed-step integrator, driven by [`integrate`].
-struct Stepped(Dyn);
+struct Stepped(BoxedIntegrator);
 
 impl Run for Stepped {
     fn run(
@@ -98,7 +98,7 @@ pub type BoxedRun = Box<dyn Run>;
 
 /// Wraps a fixed-step integrator as a [`Run`].
 pub fn stepped(integrator: ecr_runtime::Result<BoxedIntegrator>) -> ecr_runtime::Result<BoxedRun> {
-    Ok(Box::new(Stepped(Dyn(integrator?))))
+    Ok(Box::new(Stepped(integrator?)))
 }
 
 /// Builds a series's method for h (or tol).

@@ -1,7 +1,7 @@
 //! The runs of the paper's §9: global-error studies, energy (Hamiltonian) studies and the
 //! Lyapunov-function study, each over every registered method.
 
-use super::methods::{Dyn, Method, PRIMARY, Problem, ec};
+use super::methods::{Method, PRIMARY, Problem, ec};
 use ecr::problems::{Duffing, Nls, Wind};
 use ecr_runtime::integrate::{IntegrateOptions, Report, StepPlan, integrate};
 use ecr_runtime::stepper::SolverSettings;
@@ -426,8 +426,8 @@ fn run_one(
     cost: f64,
     mut observer: impl FnMut(f64, &[f64], Option<f64>),
 ) -> Result<Outcome, String> {
-    let mut stepper = Dyn(integrator);
-    let h = stepper.0.step_size();
+    let mut stepper = integrator;
+    let h = stepper.step_size();
     let mut y = problem.initial_value();
     let total = steps_for(t_end, h);
     // Observe at least every ~1/200 of the run so the bar moves.
@@ -472,7 +472,7 @@ fn run_one(
         report,
         y,
         seconds: start.elapsed().as_secs_f64(),
-        own_steps: stepper.0.own_steps(),
+        own_steps: stepper.own_steps(),
     })
 }
 

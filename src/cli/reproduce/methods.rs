@@ -211,22 +211,3 @@ pub fn methods() -> Vec<Method> {
         },
     ]
 }
-
-/// Owns a boxed integrator and implements [`Integrator`] for it, so that
-/// [`ecr_runtime::integrate::integrate`] (which needs a sized type) can drive it.
-pub struct Dyn(pub BoxedIntegrator);
-
-impl Integrator for Dyn {
-    fn step_size(&self) -> f64 {
-        self.0.step_size()
-    }
-    fn set_step_size(&mut self, h: f64) -> ecr_runtime::Result<()> {
-        self.0.set_step_size(h)
-    }
-    fn step_state(&mut self, y: &mut [f64]) -> ecr_runtime::Result<StepReport> {
-        self.0.step_state(y)
-    }
-    fn energy_of(&self, y: &[f64]) -> Option<f64> {
-        self.0.energy_of(y)
-    }
-}
