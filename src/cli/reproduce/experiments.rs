@@ -418,7 +418,7 @@ struct Outcome {
 // One flat list of the run's parameters reads better here than a one-use struct.
 #[allow(clippy::too_many_arguments)]
 fn run_one(
-    integrator: super::methods::BoxedIntegrator,
+    mut stepper: super::methods::BoxedIntegrator,
     problem: &Problem,
     t_end: f64,
     observe_every: usize,
@@ -426,7 +426,6 @@ fn run_one(
     cost: f64,
     mut observer: impl FnMut(f64, &[f64], Option<f64>),
 ) -> Result<Outcome, String> {
-    let mut stepper = integrator;
     let h = stepper.step_size();
     let mut y = problem.initial_value();
     let total = steps_for(t_end, h);
