@@ -198,6 +198,11 @@ impl PhiBank for DenseBank {
         Some((m + 1) * d * d)
     }
 
+    fn stored(&self) -> usize {
+        let d = self.dim();
+        (self.len * (self.p + 2)).saturating_mul(d.saturating_mul(d))
+    }
+
     fn propagate_dd(
         &self,
         i: usize,
@@ -374,6 +379,11 @@ impl<const D: usize> PhiBank for DenseStaticBank<D> {
     fn combine_cost(&self, m: usize) -> Option<usize> {
         let d = self.dim();
         Some((m + 1) * d * d)
+    }
+
+    fn stored(&self) -> usize {
+        let d = self.dim();
+        (self.len * (self.p + 2)).saturating_mul(d.saturating_mul(d))
     }
 
     fn propagate_dd(

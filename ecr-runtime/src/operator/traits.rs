@@ -185,6 +185,15 @@ pub trait PhiBank {
         false
     }
 
+    /// About how many numbers the bank stores: what a cache of banks counts against its
+    /// budget. The default, `len() · (p() + 1) · dim()`, is one number per mode, node and
+    /// function; banks that store d × d matrices say so.
+    fn stored(&self) -> usize {
+        self.len()
+            .saturating_mul(self.p() + 1)
+            .saturating_mul(self.dim())
+    }
+
     /// The multiply-adds of one output block of [`combine`](Self::combine) with `m` g-blocks,
     /// for banks whose `combine` is simple enough that the ECrP stepper may replace its sweeps
     /// by fused stage matrices when those cost no more

@@ -61,6 +61,7 @@
 //! that order (`step.rs`); [`SizedEcStepper`], which picks the buffers (`sized.rs`).
 
 mod buffers;
+mod cache;
 mod context;
 mod finish;
 mod fused;
@@ -76,6 +77,7 @@ mod step;
 mod stopping;
 
 pub use buffers::{BufferParts, Buffers, StaticBuffers, VecBuffers};
+pub(crate) use cache::BankCache;
 pub use fused::{FUSED_MAX_ENTRIES, FusedMaps, fuses_stages, stage_matrices};
 pub use gemv::gemv_cm;
 pub use kernel::{FixedKernel, Kernel, RuntimeKernel};

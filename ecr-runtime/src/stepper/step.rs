@@ -2,8 +2,10 @@
 //! algorithm of one step, whose parts are the methods of [`StepContext`].
 
 use std::marker::PhantomData;
+use std::sync::Arc;
 
 use super::buffers::{BufferParts, Buffers, VecBuffers};
+use super::cache::{BankCache, BankKey, Built};
 use super::context::{Bank, BankWorkspace, StepContext};
 use super::fused::{FusedMaps, fused_maps, fuses_stages};
 use super::iteration::Effort;
@@ -23,15 +25,19 @@ pub struct Stepper<K: Kernel, S: System, B: Buffers> {
     system: S,
     settings: SolverSettings,
     h: f64,
-    bank: Bank<S>,
+    /// The kernel bank for h (nodes c₁..c_s, 1, and 1 + c₁..1 + c_s with the extrapolating
+    /// predictor), its combine coefficients (h τ (2j+1) per node τ and j < r) and the step as
+    /// dense maps ([`FusedMaps`]) where that is cheaper (see [`fuses_stages`]; otherwise each
+    /// sweep forms the moments and combines): built once per step size, shared with the other
+    /// steppers of a [`BankCache`].
+    built: Arc<Built<Bank<S>>>,
+    /// Where banks are shared with other steppers of the same system (a solve's runs).
+    cache: Option<Arc<BankCache<Bank<S>>>>,
+    /// The bank of the step size before the last change, kept so that changing back (after a
+    /// last step shortened to end a span) builds nothing.
+    spare: Option<Arc<Built<Bank<S>>>>,
     ws: BankWorkspace<S>,
-    /// r coefficients h τ^{k+1} per bank node τ = c₁..c_s, 1 (and 1 + c₁..1 + c_s with the
-    /// extrapolating predictor).
-    coef: Vec<f64>,
     scratch: Vec<f64>,
-    /// The step as dense maps ([`FusedMaps`]), where that is cheaper (see [`fuses_stages`]);
-    /// otherwise `None` and each sweep forms the moments and combines.
-    fused: Option<FusedMaps>,
     buf: B,
     /// The buffers hold a completed step (y₀, moments, and its end in `last`) for this h.
     have_previous: bool,
@@ -133,6 +139,20 @@ impl<S: System, B: Buffers> Stepper<RuntimeKernel, S, B> {
         check_settings(&settings)?;
         Self::from_kernel(RuntimeKernel::new(r, s)?, system, h, settings)
     }
+
+    /// [`with_nodes`](Self::with_nodes) sharing its banks through `cache` (see
+    /// [`BankCache`]).
+    pub(crate) fn with_nodes_cached(
+        system: S,
+        (r, s): (usize, usize),
+        h: f64,
+        settings: SolverSettings,
+        cache: &Arc<BankCache<Bank<S>>>,
+    ) -> Result<Self> {
+        check_settings(&settings)?;
+        let kernel = RuntimeKernel::new(r, s)?;
+        Self::from_kernel_cached(kernel, system, h, settings, Some(Arc::clone(cache)))
+    }
 }
 
 impl<K: FixedKernel, S: System, B: Buffers> Stepper<K, S, B> {
@@ -149,6 +169,9 @@ fn check_settings(settings: &SolverSettings) -> Result<()> {
     settings.validate()
 }
 
+/// A bank that stores more numbers than this is not kept as a stepper's spare.
+const SPARE_MAX_STORED: usize = 1 << 22;
+
 impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
     /// A stepper from its parts: allocates the buffers and builds the φ-bank for h.
     ///
@@ -159,6 +182,19 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
     /// if [`StageSolver::Newton`]'s `O(s²d²)` matrices cannot be allocated (checked here,
     /// before the first step would abort on them), and whatever building the φ-bank reports.
     pub fn from_kernel(kernel: K, system: S, h: f64, settings: SolverSettings) -> Result<Self> {
+        Self::from_kernel_cached(kernel, system, h, settings, None)
+    }
+
+    /// [`from_kernel`](Self::from_kernel) taking its banks from `cache` (and putting the ones it
+    /// builds there), shared with the other steppers of the cache. The cache must serve only
+    /// steppers of this system's operator.
+    pub(crate) fn from_kernel_cached(
+        kernel: K,
+        system: S,
+        h: f64,
+        settings: SolverSettings,
+        cache: Option<Arc<BankCache<Bank<S>>>>,
+    ) -> Result<Self> {
         check_settings(&settings)?;
         crate::system::check_system(&system)?;
         if settings.solver != StageSolver::FixedPoint {
@@ -169,10 +205,11 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             )?;
         }
         let buf = B::with_sizes(kernel.r(), kernel.s(), system.dim())?;
-        let (bank, coef, fused, ws) = Self::build_bank(&system, &kernel, h, settings.predictor)?;
+        let built = Self::obtain(&system, &kernel, h, settings.predictor, cache.as_deref())?;
+        let ws = built.bank.workspace();
         let par = ParallelState::new(
             &kernel,
-            &bank,
+            &built.bank,
             settings.parallel_min_dim,
             system.scratch_len(),
         );
@@ -182,10 +219,10 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             system,
             settings,
             h,
-            bank,
+            built,
+            cache,
+            spare: None,
             ws,
-            coef,
-            fused,
             buf,
             have_previous: false,
             newton: None,
@@ -195,35 +232,53 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
         })
     }
 
-    /// The kernel bank for h, its combine coefficients, the step as dense maps (where
-    /// [`fuses_stages`]) and a workspace.
-    #[allow(clippy::type_complexity)]
-    fn build_bank(
+    /// The bank for h: from the cache if it has it, else built (and put there).
+    fn obtain(
         system: &S,
         kernel: &K,
         h: f64,
         predictor: Predictor,
-    ) -> Result<(Bank<S>, Vec<f64>, Option<FusedMaps>, BankWorkspace<S>)> {
+        cache: Option<&BankCache<Bank<S>>>,
+    ) -> Result<Arc<Built<Bank<S>>>> {
         if !(h.is_finite() && h > 0.0) {
             return Err(Error::InvalidStepSize(h));
         }
+        let extrapolate = predictor == Predictor::Extrapolate;
+        let build = || Self::build_bank(system, kernel, h, extrapolate);
+        match cache {
+            Some(cache) => {
+                let key = BankKey::new(h, kernel.r(), kernel.nodes(), extrapolate);
+                cache.get_or_build(key, build)
+            }
+            None => build().map(Arc::new),
+        }
+    }
+
+    /// The kernel bank for h, its combine coefficients and the step as dense maps (where
+    /// [`fuses_stages`]).
+    fn build_bank(system: &S, kernel: &K, h: f64, extrapolate: bool) -> Result<Built<Bank<S>>> {
         let r = kernel.r();
         let mut taus = kernel.nodes().to_vec();
         taus.push(1.0);
-        if predictor == Predictor::Extrapolate {
+        if extrapolate {
             taus.extend(kernel.nodes().iter().map(|c| 1.0 + c));
         }
         let bank = system.linear().kernel_bank(h, &taus, r)?;
         let coef = kernel_coefficients(h, &taus, r);
-        let mut ws = bank.workspace();
         let fused = fuses_stages(&bank, r, kernel.s()).then(|| {
-            let extrapolate = predictor == Predictor::Extrapolate;
+            let mut ws = bank.workspace();
             fused_maps(kernel, &bank, &coef, &mut ws, system.dim(), extrapolate)
         });
-        Ok((bank, coef, fused, ws))
+        Ok(Built {
+            h,
+            bank,
+            coef,
+            fused,
+        })
     }
 
-    /// Changes the step size (rebuilds the φ-bank: call it rarely).
+    /// Changes the step size (builds the φ-bank for it unless this stepper's cache has it, or it
+    /// is the step size before the last change: call it rarely).
     ///
     /// # Errors
     /// [`Error::InvalidStepSize`] and whatever building the φ-bank reports.
@@ -231,26 +286,54 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
         if h == self.h {
             return Ok(());
         }
-        let (bank, coef, fused, ws) =
-            Self::build_bank(&self.system, &self.kernel, h, self.settings.predictor)?;
+        let built = match self.spare.take().filter(|b| b.h == h) {
+            Some(b) => b,
+            None => Self::obtain(
+                &self.system,
+                &self.kernel,
+                h,
+                self.settings.predictor,
+                self.cache.as_deref(),
+            )?,
+        };
         // The concurrent path's workspaces are the new bank's (the old ones go first).
         self.par = None;
         self.par = ParallelState::new(
             &self.kernel,
-            &bank,
+            &built.bank,
             self.settings.parallel_min_dim,
             self.system.scratch_len(),
         );
-        self.ws = ws;
-        self.bank = bank;
-        self.coef = coef;
-        self.fused = fused;
+        self.ws = built.bank.workspace();
+        let old = std::mem::replace(&mut self.built, built);
+        // Kept for changing back, unless it is large (then the memory counts more).
+        self.spare = (old.bank.stored() <= SPARE_MAX_STORED).then_some(old);
         self.h = h;
         self.have_previous = false;
         self.newton = None;
         self.theta = 1.0;
         self.guess = GuessBackoff::FRESH;
         Ok(())
+    }
+
+    /// Changes the state between two steps, `y[i] = change(i, y[i])`, as if the last step had
+    /// returned the changed state: the next step still continues the last one (its predictor
+    /// and its compensated update), where it would have continued from `y`.
+    pub(crate) fn perturb_state(
+        &mut self,
+        y: &mut [f64],
+        mut change: impl FnMut(usize, f64) -> f64,
+    ) {
+        let continuing = self.have_previous;
+        self.buf.with_parts(|parts| {
+            let cont = continuing && *parts.last == *y;
+            for (i, v) in y.iter_mut().enumerate() {
+                *v = change(i, *v);
+            }
+            if cont {
+                parts.last.copy_from_slice(y);
+            }
+        });
     }
 
     /// The step size.
@@ -272,18 +355,18 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
     /// sd` matrix, for [`gemv_cm`](super::gemv_cm)) if this stepper fuses its step
     /// ([`fuses_stages`]).
     pub fn stage_matrices(&self) -> Option<&[f64]> {
-        self.fused.as_ref().map(|f| f.stage.as_slice())
+        self.built.fused.as_ref().map(|f| f.stage.as_slice())
     }
 
     /// The step as dense maps, if this stepper fuses it ([`fuses_stages`]).
     pub fn fused_maps(&self) -> Option<&FusedMaps> {
-        self.fused.as_ref()
+        self.built.fused.as_ref()
     }
 
     /// The φ-bank (kernel bank) of the step size: nodes c₁..c_s, then 1 (then 1 + cᵢ with the
     /// extrapolating predictor).
     pub fn bank(&self) -> &<S::Op as LinearOperator>::Bank {
-        &self.bank
+        &self.built.bank
     }
 
     /// The kernel.
@@ -369,11 +452,9 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             kernel,
             system,
             settings,
-            bank,
+            built,
             ws,
-            coef,
             scratch,
-            fused,
             buf,
             have_previous,
             newton,
@@ -412,11 +493,11 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                 kernel,
                 system,
                 settings,
-                bank,
+                bank: &built.bank,
                 ws,
-                coef,
+                coef: &built.coef,
                 scratch,
-                fused: fused.as_ref(),
+                fused: built.fused.as_ref(),
                 // The concurrent path (large d; never with fixed-size buffers, which are for
                 // small systems). `None` at compile time on the serial path.
                 par: if B::LOCAL_STAGES || PLAIN {
