@@ -238,7 +238,7 @@ impl StepPlan {
 /// the error-free transformations of t_end − t₀ (two-sum) and n·h (two-product by
 /// [`f64::mul_add`]); the difference of their leading parts is exact by Sterbenz's lemma when
 /// n·h is within a factor 2 of the span.
-fn exact_rest(t0: f64, t_end: f64, n: f64, h: f64) -> f64 {
+pub(crate) fn exact_rest(t0: f64, t_end: f64, n: f64, h: f64) -> f64 {
     // t_end − t₀ = span + span_err exactly.
     let span = t_end - t0;
     let v = span - t_end;

@@ -691,6 +691,13 @@ fn solve_to<S: System>(
     if let Some(r) = r {
         options = options.orders(r..=r);
     }
+    if trace_requested() {
+        // A diagnostic: a stderr that cannot be written to (closed, full) loses the trace,
+        // not the run.
+        options = options.trace(|line| {
+            let _ = writeln!(std::io::stderr(), "{line}");
+        });
+    }
     let (solution, unverified) = match problem.solve(&options) {
         Ok(sol) => (sol.into_data(), None),
         Err(SolveError::Unverified { reason, solution }) => (*solution, Some(reason)),
@@ -701,6 +708,15 @@ fn solve_to<S: System>(
         solution,
         unverified,
         seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// Whether `ECR_SOLVE_TRACE` asks for the solver's trace on stderr: set to anything but
+/// empty, `0`, `false`, `no` or `off`.
+fn trace_requested() -> bool {
+    std::env::var_os("ECR_SOLVE_TRACE").is_some_and(|v| {
+        let v = v.to_string_lossy().trim().to_ascii_lowercase();
+        !matches!(v.as_str(), "" | "0" | "false" | "no" | "off")
     })
 }
 

@@ -1,5 +1,8 @@
 //! The solution between grid points: the run's method stepped from a grid point.
 
+use std::sync::Arc;
+
+use super::SolveCache;
 use crate::error::Result;
 use crate::stepper::{EcStepper, Predictor, SolverSettings};
 use crate::system::System;
@@ -13,11 +16,18 @@ pub(super) struct DenseStep<'a, S: System> {
     r: usize,
     settings: SolverSettings,
     stepper: Option<EcStepper<&'a S>>,
+    cache: Arc<SolveCache<S>>,
 }
 
 impl<'a, S: System> DenseStep<'a, S> {
-    pub(super) fn new(system: &'a S, r: usize, settings: SolverSettings) -> Self {
+    pub(super) fn new(
+        system: &'a S,
+        r: usize,
+        settings: SolverSettings,
+        cache: &Arc<SolveCache<S>>,
+    ) -> Self {
         DenseStep {
+            cache: Arc::clone(cache),
             system,
             r,
             settings: SolverSettings {
@@ -46,12 +56,12 @@ impl<'a, S: System> DenseStep<'a, S> {
                 st.set_step_size(h)?;
                 st
             }
-            slot => slot.insert(EcStepper::with_nodes(
+            slot => slot.insert(EcStepper::with_nodes_cached(
                 self.system,
-                self.r,
-                self.r,
+                (self.r, self.r),
                 h,
                 self.settings,
+                &self.cache,
             )?),
         };
         let mut g = 0;

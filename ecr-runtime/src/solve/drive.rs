@@ -1,9 +1,10 @@
 //! How a solve proceeds: a fixed-step run, or the pilot and then the verified run in chunks,
 //! with the decision after each chunk (keep it, or integrate again with a smaller step).
 
-use super::Problem;
+use std::sync::Arc;
+
 use super::estimate::{
-    TARGET, at_most, divisor, estimate, project, project_noise, quantile, rescale,
+    Profile, TARGET, at_most, divisor, estimate, project, project_noise, quantile, rescale,
 };
 use super::grid::{fit_grid, quantum};
 use super::kept::{Kept, Observer, discard, ensure_output_fits, finish};
@@ -11,6 +12,7 @@ use super::options::{Method, Options};
 use super::pilot::Pilot;
 use super::run::{Checkpoint, Chunk, Collect, Grid, MEET, Point, Runs, Which};
 use super::solution::{Segment, Solution, SolveError, Stats, Status};
+use super::{Problem, SOLVE_CACHE_BANKS, SolveCache};
 use crate::error::{Error, Result};
 use crate::integrate::StepPlan;
 use crate::system::System;
@@ -30,8 +32,12 @@ const STUCK_LIMIT: usize = 5;
 const MAX_RETRIES: usize = 10;
 
 /// A run far more accurate than asked starts again with a larger step only this early (an
-/// error that grows late is not seen before), once, and at most twice as large.
+/// error that grows late is not seen before), at most [`MAX_UPS`] times, each at most twice as
+/// large.
 const UP_SHARE: f64 = 1.0 / 16.0;
+
+/// Upward restarts of a solve.
+const MAX_UPS: usize = 2;
 
 /// With an observer, the run is shown to it from this share of the span on.
 const SHOW_SHARE: f64 = 1.0 / 8.0;
@@ -58,9 +64,10 @@ impl<S: System> Problem<S> {
                 .into());
             }
         }
+        let cache = Arc::new(SolveCache::<S>::new(SOLVE_CACHE_BANKS));
         match options.method {
-            Method::Fixed { r, h } => Ok(self.fixed(options, r, h, &mut observer)?),
-            _ => self.verified(options, &mut observer),
+            Method::Fixed { r, h } => Ok(self.fixed(options, r, h, &mut observer, &cache)?),
+            _ => self.verified(options, &mut observer, &cache),
         }
     }
 
@@ -80,6 +87,7 @@ impl<S: System> Problem<S> {
         r: usize,
         h: f64,
         observer: &mut Observer<'_>,
+        cache: &Arc<SolveCache<S>>,
     ) -> Result<Solution<S>> {
         let span = self.t_end - self.t0;
         // A step beyond the span is one step of the span.
@@ -108,12 +116,14 @@ impl<S: System> Problem<S> {
             grid,
             self.same_time(),
             1.0,
+            cache,
         )?;
         let collect = Collect {
             every_step: options.t_eval.is_none(),
             steps: observer.is_some(),
             grid: options.dense,
             events: true,
+            t_eval: true,
         };
         let mut kept = Kept::new(self.t0, h);
         let mut first = Chunk::default();
@@ -148,6 +158,7 @@ impl<S: System> Problem<S> {
         &self,
         options: &Options,
         observer: &mut Observer<'_>,
+        cache: &Arc<SolveCache<S>>,
     ) -> std::result::Result<Solution<S>, SolveError> {
         let span = self.t_end - self.t0;
         let system = &*self.system;
@@ -161,7 +172,7 @@ impl<S: System> Problem<S> {
             end: self.t_end,
         };
         let r0 = self.first_order(options);
-        let mut runs = Runs::new(system, options, r0, true, &self.y0, start, same, 1.0)?;
+        let mut runs = Runs::new(system, options, r0, true, &self.y0, start, same, 1.0, cache)?;
         let floor = runs.noise_at_start();
         if !at_most(floor, 0.25) {
             return Err(Error::InvalidInput(format!(
@@ -181,6 +192,7 @@ impl<S: System> Problem<S> {
                 steps: false,
                 grid: options.dense,
                 events: true,
+                t_eval: true,
             };
             let mut kept = Kept::new(self.t0, 0.0);
             let mut chunk = Chunk::default();
@@ -189,10 +201,10 @@ impl<S: System> Problem<S> {
             return Ok(self.assemble(options, kept, stats, r0, Some(1.0), None, 0.0));
         }
         let pilot = match options.method {
-            Method::Order(r) => self.pilot(options, r, None, &mut stats)?,
-            _ => self.pilot_auto(options, &mut stats)?,
+            Method::Order(r) => self.pilot(options, r, None, &mut stats, cache)?,
+            _ => self.pilot_auto(options, &mut stats, cache)?,
         };
-        self.verified_run(options, pilot, stats, observer)
+        self.verified_run(options, pilot, stats, observer, cache)
     }
 
     /// The verified run (see the module docs): chunks of the three runs from t₀; after each
@@ -208,6 +220,7 @@ impl<S: System> Problem<S> {
         pilot: Pilot,
         mut stats: Stats,
         observer: &mut Observer<'_>,
+        cache: &Arc<SolveCache<S>>,
     ) -> std::result::Result<Solution<S>, SolveError> {
         let r = pilot.r;
         let p = (2 * r) as f64;
@@ -219,13 +232,24 @@ impl<S: System> Problem<S> {
             steps: observer.is_some(),
             grid: options.dense,
             events: true,
+            t_eval: true,
         };
-        let trace = std::env::var_os("ECR_SOLVE_TRACE").is_some();
         let mut h_want = pilot.h;
         // The order the differences show: the pilot's, then the last run's.
         let mut order_hint = pilot.order;
+        // The highest order the differences showed at a step no larger than the current one:
+        // where the runs are in their asymptotic regime. A lower order seen at a larger step
+        // is the checking runs leaving that regime; the step-size law follows the asymptotic
+        // one.
+        let mut asymptotic = (pilot.order, pilot.h_order);
+        // What every attempt so far saw (a later attempt projects its end from them too).
+        let mut seen: Vec<Profile> = Vec::new();
         let mut restarts = 0;
         let mut ups = 0;
+        // An attempt went on to the end of the span to measure the rounding (at most once),
+        // and what it measured there: (the round-off, its steps).
+        let mut scouted = false;
+        let mut measured_floor: Option<(f64, usize)> = None;
         // Where the last step failure was, and how often in a row a step failed there.
         let (mut failed_at, mut stuck): (Option<f64>, usize) = (None, 0);
         // The smallest step that was over the tolerance (or projected to be): a larger step is
@@ -242,12 +266,12 @@ impl<S: System> Problem<S> {
                 0
             };
             ensure_output_fits(self.y0.len(), outputs, dense, held)?;
-            if trace {
-                eprintln!(
+            options.say(|| {
+                format!(
                     "solve: EC{r}P from t0 with h = {:.4e} ({} steps)",
                     grid.h, grid.n_end
-                );
-            }
+                )
+            });
             let mut runs = Runs::new(
                 system,
                 options,
@@ -257,6 +281,7 @@ impl<S: System> Problem<S> {
                 grid,
                 self.same_time(),
                 order_hint,
+                cache,
             )?;
             let mut kept = Kept::new(self.t0, grid.h);
             let mut first = Chunk::default();
@@ -266,10 +291,17 @@ impl<S: System> Problem<S> {
             let mut shown = false;
             // (time since t₀, the controlled statistic so far) after each kept chunk.
             let mut history: Vec<(f64, f64)> = Vec::new();
+            // The round-off model (with the measured sensitivity) after each chunk.
+            let mut noise_history: Vec<(f64, f64)> = Vec::new();
+            // This attempt runs to the end of the span whatever its estimate, to measure the
+            // rounding there.
+            let mut scouting = false;
             let mut controlled = 0.0_f64;
             let mut chunk_share = FIRST_CHUNK_SHARE;
             let mut retries = 0;
             let mut restart_with: Option<f64> = None;
+            // The estimate of a chunk that was not kept (the profile of the attempt ends there).
+            let mut failed_point: Option<(f64, f64)> = None;
             while runs.n < runs.grid.n_end && !kept.ended() {
                 let ck: Checkpoint = runs.checkpoint();
                 let block = MEET as f64 * runs.grid.h;
@@ -309,15 +341,36 @@ impl<S: System> Problem<S> {
                                 self.best_effort(options, runs, kept, stats, r, why, observer)
                             );
                         }
-                        (h / 2.0, why)
+                        // The estimate in hand: where it projects over the tolerance, the
+                        // step-size law sets the next step (a step failure of a checking run
+                        // comes with an answer that is often far from verified anyway).
+                        let q = asymptotic.0.clamp(0.5 * p, p);
+                        let projected = if history.is_empty() {
+                            0.0
+                        } else {
+                            project(&history, span)
+                        };
+                        let law = if projected > 0.7 * TARGET && projected.is_finite() {
+                            rescale(h, 0.7 * TARGET / projected, q)
+                        } else {
+                            h
+                        };
+                        let h_new = if f.which == Which::Fine {
+                            (h / 2.0).min(law)
+                        } else {
+                            (h / 1.5).min(law)
+                        };
+                        (h_new.max(h / 8.0), why)
                     }
                     Ok(chunk) => {
                         let order = runs.maxima.order(p);
                         let div = divisor(order);
                         // The step-size law: the observed order, but not below r (far from
                         // the asymptotic regime a smaller order would shrink the step far
-                        // too much).
-                        let q = order.unwrap_or(p).clamp(0.5 * p, p);
+                        // too much), nor below the order the runs showed where they were
+                        // asymptotic (a low order at this step is the checking runs leaving
+                        // that regime: the answer's error is far below the estimate).
+                        let q = order.unwrap_or(p).max(asymptotic.0).clamp(0.5 * p, p);
                         let est = |pt: &Point| estimate(pt.diff, pt.noise, div);
                         let worst_out = chunk
                             .outputs
@@ -355,42 +408,135 @@ impl<S: System> Problem<S> {
                         let stat = quantile(&mut meets, level);
                         let now = controlled.max(stat);
                         history.push((t - self.t0, now));
+                        if let Some(q) = order.filter(|q| *q >= 0.5 * p) {
+                            if h <= asymptotic.1 || q > asymptotic.0 {
+                                asymptotic = (asymptotic.0.max(q), asymptotic.1.max(h));
+                            }
+                        }
+                        // What earlier attempts saw beyond this point, scaled to this step.
+                        let elapsed = t - self.t0;
+                        let from_seen = seen
+                            .iter()
+                            .filter(|pr| pr.points.last().is_some_and(|l| l.0 > elapsed))
+                            .map(|pr| {
+                                let scaled = Profile {
+                                    order: pr.order.map(|q| q.max(0.5 * p)),
+                                    ..pr.clone()
+                                };
+                                scaled.predict(h, p, span)
+                            })
+                            .fold(0.0, f64::max);
                         let projected = if at_end {
                             worst_out
                         } else {
-                            project(&history, span).max(worst_out)
+                            project(&history, span).max(worst_out).max(from_seen)
                         };
-                        if trace {
-                            eprintln!(
+                        options.say(|| format!(
                                 "solve:   t = {t:.4}: outputs {worst_out:.3e}, meets (q {level:.3}) {stat:.3e}, noise {noise:.3e}, order {order:?}, projected {projected:.3e}"
-                            );
-                        }
+                            ));
                         let over = !at_most(worst_out, 1.0);
-                        // Over (or projected over) by round-off alone: no step helps.
+                        noise_history.push((t - self.t0, noise));
+                        // Over (or projected over) by round-off alone: no step helps. The
+                        // rounding grows like a random walk, or faster where the flow amplifies
+                        // it (measured by the sensitivity run).
+                        // What the rounding will be at the end: measured there by an earlier
+                        // attempt (it grows with the square root of the steps), or projected
+                        // like a random walk from here; the projection at the rate it grew
+                        // over the last stretch decides whether to measure it.
+                        let walk = project_noise(&history, noise, span);
                         let floor = if at_end {
                             noise
+                        } else if let Some((m, steps)) = measured_floor {
+                            let ratio = (runs.grid.n_end as f64 / steps as f64).max(1.0);
+                            walk.max(m * ratio.sqrt())
                         } else {
-                            project_noise(&history, noise, span)
+                            walk
                         };
-                        if (over || projected > 1.0) && floor >= 0.5 * projected.max(worst_out) {
+                        let steep = project(&noise_history, span);
+                        // Over (or projected over) while the differences between the runs are
+                        // at the level of the rounding: no step size helps. Where only the
+                        // projection of the rounding says so, the attempt goes on to the end
+                        // of the span to measure it (once): a smaller step would not change it.
+                        let at_floor = floor >= 0.5 * projected.max(worst_out)
+                            || (order.is_none() && runs.maxima.fine > 0.0);
+                        if (over || projected > 1.0)
+                            && (at_floor || steep > 1.0)
+                            && !at_end
+                            && !shown
+                            && !scouted
+                            && observer.is_none()
+                        {
+                            options.say(|| format!(
+                                "solve:   the rounding is projected to reach {:.3e} times the tolerance: on to the end of the span with h = {h:.4e} to measure it", floor.max(steep)
+                            ));
+                            scouted = true;
+                            scouting = true;
+                        }
+                        if scouting && !at_end {
+                            kept.keep(chunk, Some(div), h)?;
+                            controlled = now;
+                            chunk_share = (2.0 * chunk_share).min(LAST_CHUNK_SHARE);
+                            continue;
+                        }
+                        if scouting && at_end {
+                            measured_floor = Some((noise, runs.grid.n_end));
+                        }
+                        if (over || projected > 1.0) && (at_floor || (at_end && noise > 0.5)) {
                             discard(&mut stats, &chunk.cost);
                             let steps = runs.total;
                             runs.restore(&ck)?;
                             let why = format!(
                                 "the tolerance is at the round-off floor of this problem: by t = \
-                                 {t:?} the rounding of {steps} steps (and of time itself) is \
-                                 modelled at {noise:.2e} times the tolerance, {floor:.2e} by the \
-                                 end of the span"
+                                 {t:?} the rounding of {steps} steps (and of time itself), \
+                                 amplified by the flow, is {noise:.2e} times the tolerance \
+                                 ({floor:.2e} projected to the end of the span), and the \
+                                 differences between the runs are no larger: no step size \
+                                 verifies the answer at this tolerance"
                             );
                             return Err(
                                 self.best_effort(options, runs, kept, stats, r, why, observer)
                             );
                         }
                         if over || (projected > 1.0 && !shown) {
-                            history.pop();
+                            failed_point = history.pop();
                             discard(&mut stats, &chunk.cost);
                             h_fail = h_fail.min(h);
                             let worst = if over { worst_out.max(stat) } else { projected };
+                            // Rounding amplified by the flow: an attempt with a clearly larger
+                            // step had as small an estimate here, so the step does not make
+                            // it shrink.
+                            // Only runs that resolved the start (their first stretch well
+                            // within the tolerance) count: far from the asymptotic regime the
+                            // estimate need not shrink either.
+                            let elapsed = t - self.t0;
+                            let now_here = worst_out.max(stat).max(now);
+                            let resolved =
+                                |pts: &[(f64, f64)]| pts.first().is_some_and(|f| f.1 <= 0.1);
+                            let stalled = seen
+                                .iter()
+                                .filter(|pr| {
+                                    pr.h >= 1.4 * h && resolved(&pr.points) && resolved(&history)
+                                })
+                                .find_map(|pr| {
+                                    pr.at(elapsed)
+                                        .filter(|&e| now_here > 1.0 && now_here >= 0.5 * e)
+                                        .map(|e| (pr.h, e))
+                                });
+                            if let Some((h_prev, e_prev)) = stalled {
+                                discard(&mut stats, &chunk.cost);
+                                runs.restore(&ck)?;
+                                let why = format!(
+                                    "the estimate does not shrink with the step: {now_here:.3e} \
+                                     times the tolerance by t = {t:?} with h = {h:.3e}, \
+                                     {e_prev:.3e} with h = {h_prev:.3e}: the differences between \
+                                     the runs are rounding amplified by the flow (chaos, an \
+                                     orbit near a separatrix), which no step size removes at \
+                                     this tolerance"
+                                );
+                                return Err(
+                                    self.best_effort(options, runs, kept, stats, r, why, observer)
+                                );
+                            }
                             let law = if worst.is_finite() {
                                 rescale(h, 0.7 * TARGET / worst, q)
                             } else {
@@ -429,7 +575,7 @@ impl<S: System> Problem<S> {
                             if projected < TARGET / 20.0
                                 && order.is_some()
                                 && !shown
-                                && ups < 1
+                                && ups < MAX_UPS
                                 && t - self.t0 <= UP_SHARE * span
                                 && up > 1.1 * h
                             {
@@ -438,11 +584,11 @@ impl<S: System> Problem<S> {
                                 ups += 1;
                                 let grow = TARGET / projected.max(f64::MIN_POSITIVE);
                                 let up = rescale(h, grow, q).min(up);
-                                if trace {
-                                    eprintln!(
+                                options.say(|| {
+                                    format!(
                                         "solve:   again with h = {up:.4e}: far below the tolerance"
-                                    );
-                                }
+                                    )
+                                });
                                 restart_with = Some(up);
                                 break;
                             }
@@ -463,9 +609,7 @@ impl<S: System> Problem<S> {
                 // Over the tolerance (or a failed step).
                 let (h_new, why) = again;
                 stats.retries += 1;
-                if trace {
-                    eprintln!("solve:   again with h = {h_new:.4e}: {why}");
-                }
+                options.say(|| format!("solve:   again with h = {h_new:.4e}: {why}"));
                 if !shown {
                     restarts += 1;
                     if restarts > MAX_RESTARTS {
@@ -504,6 +648,15 @@ impl<S: System> Problem<S> {
             }
             if let Some(h_new) = restart_with {
                 discard(&mut stats, &kept.cost);
+                let mut points = history.clone();
+                points.extend(failed_point);
+                if !points.is_empty() {
+                    seen.push(Profile {
+                        h: runs.grid.h,
+                        order: runs.maxima.order(p),
+                        points,
+                    });
+                }
                 h_want = h_new;
                 if let Some(q) = runs.maxima.order(p) {
                     order_hint = q;
@@ -540,6 +693,7 @@ impl<S: System> Problem<S> {
             steps: observer.is_some(),
             grid: options.dense,
             events: true,
+            t_eval: true,
         };
         while !kept.ended() && runs.n < runs.grid.n_end {
             let n_stop = runs.grid.n_end;

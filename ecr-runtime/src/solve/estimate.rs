@@ -107,18 +107,74 @@ pub(super) fn quantile(xs: &mut [f64], level: f64) -> f64 {
 
 /// The largest estimate at the end of the span, from its growth so far: E(τ) ∝ τ^α, α from
 /// the last point and the one nearest half its time (within [0, 2]; ½ — between a bounded
-/// error and a linearly growing one — with too little history).
+/// error and a linearly growing one — with too little history). Where the estimate grew faster
+/// than τ² over the last stretch (an instability, chaos: errors that grow exponentially), it
+/// grows on at that exponential rate instead.
 pub(super) fn project(history: &[(f64, f64)], span: f64) -> f64 {
     let Some(&(tk, ek)) = history.last() else {
         return 0.0;
     };
-    let alpha = history
+    let half = history
         .iter()
         .rev()
         .find(|(t, _)| *t <= 0.5 * tk)
-        .filter(|(_, e)| *e > 0.0)
-        .map_or(0.5, |&(t, e)| {
-            ((ek / e).ln() / (tk / t).ln()).clamp(0.0, 2.0)
+        .filter(|(_, e)| *e > 0.0);
+    let alpha = half.map_or(0.5, |&(t, e)| {
+        ((ek / e).ln() / (tk / t).ln()).clamp(0.0, 2.0)
+    });
+    let power = ek * (span / tk).powf(alpha);
+    // The last stretch: exponential growth where it is steeper than τ².
+    let n = history.len();
+    let steep = (n >= 2)
+        .then(|| history[n - 2])
+        .filter(|&(t, e)| e > 0.0 && t > 0.0 && tk > t && ek > e * (tk / t).powi(2))
+        .map_or(0.0, |(t, e)| {
+            let rate = (ek / e).ln() / (tk - t);
+            ek * (rate * (span - tk)).min(700.0).exp()
         });
-    ek * (span / tk).powf(alpha)
+    power.max(steep)
+}
+
+/// What an attempt of the verified run (or a pilot) saw: its step size, the order its
+/// differences showed, and the controlled estimate after each kept chunk (time since t₀,
+/// estimate), up to where it got.
+#[derive(Clone, Debug)]
+pub(super) struct Profile {
+    pub(super) h: f64,
+    pub(super) order: Option<f64>,
+    pub(super) points: Vec<(f64, f64)>,
+}
+
+impl Profile {
+    /// The estimate it had at time `t` since t₀ (its points are running maxima): geometric
+    /// interpolation between the points around t; the last point if it is at 0.9 t or later;
+    /// `None` if it did not get that far.
+    pub(super) fn at(&self, t: f64) -> Option<f64> {
+        let k = self.points.partition_point(|&(tp, _)| tp < t);
+        match (k.checked_sub(1).map(|i| self.points[i]), self.points.get(k)) {
+            (_, Some(&(tp, e))) if tp == t => Some(e),
+            (Some((ta, ea)), Some(&(tb, eb))) if ea > 0.0 && eb > 0.0 => {
+                let w = (t - ta) / (tb - ta);
+                Some(ea * (eb / ea).powf(w))
+            }
+            (_, Some(&(_, eb))) => Some(eb),
+            (Some((ta, ea)), None) if ta >= 0.9 * t => Some(ea),
+            _ => None,
+        }
+    }
+
+    /// The estimate this profile predicts at the end of the span for a run of step `h` with
+    /// nominal order `p`: its own projection to the end, scaled by (h/h_P)^q — q the order it
+    /// showed (at least 1) for a smaller step, p for a larger one (the less favourable in each
+    /// direction).
+    pub(super) fn predict(&self, h: f64, p: f64, span: f64) -> f64 {
+        let end = project(&self.points, span);
+        let ratio = h / self.h;
+        let q = if ratio < 1.0 {
+            self.order.unwrap_or(1.0).clamp(1.0, p)
+        } else {
+            p
+        };
+        end * ratio.powf(q)
+    }
 }

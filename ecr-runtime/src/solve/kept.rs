@@ -37,7 +37,7 @@ impl Kept {
     /// Keeps a chunk with its estimates (`div`: the Richardson divisor; `None` for a fixed
     /// method, estimates 0). `Err` if its storage cannot be allocated.
     pub(super) fn keep(&mut self, chunk: Chunk, div: Option<f64>, h: f64) -> Result<()> {
-        let est = |p: &Point| div.map_or(0.0, |div| estimate(p.diff, p.noise, div));
+        let est = |p: &Point| div.map_or(0.0, |div| estimate(p.diff, p.noise, div) + p.interp);
         let d = chunk.outputs.first().map_or(0, |p| p.y.len());
         reserve(&mut self.outputs, chunk.outputs.len(), d)?;
         reserve(&mut self.grid, chunk.grid.len(), 2 * d)?;

@@ -62,11 +62,13 @@ mod drive;
 mod estimate;
 mod events;
 mod grid;
+mod hermite;
 mod kept;
 mod options;
 mod pilot;
 mod run;
 mod solution;
+mod trail;
 
 use std::ops::ControlFlow;
 use std::sync::Arc;
@@ -76,7 +78,16 @@ pub use options::{Method, Options};
 pub use solution::{Segment, Solution, SolveError, Stats, Status, StepView};
 
 use crate::error::{Error, Result};
+use crate::operator::LinearOperator;
+use crate::stepper::BankCache;
 use crate::system::System;
+
+/// The banks of one solve, shared by its pilots, runs, checking runs and output steps.
+pub(crate) type SolveCache<S> = BankCache<<<S as System>::Op as LinearOperator>::Bank>;
+
+/// Banks a solve keeps at once (besides the ones in use): every step size of the three runs of
+/// the current attempt and of the one before.
+const SOLVE_CACHE_BANKS: usize = 12;
 
 /// An initial value problem y' = Ay + g(y), y(t₀) = y₀, on [t₀, t_end]. The system is held
 /// behind a reference count, so that the solutions share it rather than borrow the problem.

@@ -1,6 +1,8 @@
 //! What [`Problem::solve`](super::Problem::solve) is asked for.
 
+use std::fmt;
 use std::ops::RangeInclusive;
+use std::sync::Arc;
 
 use super::events::Event;
 use crate::error::{Error, Result};
@@ -24,9 +26,11 @@ pub enum Method {
     },
 }
 
+/// Where the decisions of a solve are told, line by line (see [`Options::trace`]).
+type TraceSink = Arc<dyn Fn(&str) + Send + Sync>;
+
 /// What [`Problem::solve`](super::Problem::solve) is asked for: a tolerance (or a fixed
 /// method), output times, events.
-#[derive(Debug)]
 pub struct Options {
     pub(super) rtol: f64,
     pub(super) atol: f64,
@@ -37,6 +41,24 @@ pub struct Options {
     pub(super) events: Vec<Event>,
     pub(super) settings: SolverSettings,
     pub(super) max_steps: usize,
+    pub(super) trace: Option<TraceSink>,
+}
+
+impl fmt::Debug for Options {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Options")
+            .field("rtol", &self.rtol)
+            .field("atol", &self.atol)
+            .field("method", &self.method)
+            .field("orders", &self.orders)
+            .field("t_eval", &self.t_eval.as_ref().map(Vec::len))
+            .field("dense", &self.dense)
+            .field("events", &self.events)
+            .field("settings", &self.settings)
+            .field("max_steps", &self.max_steps)
+            .field("trace", &self.trace.is_some())
+            .finish()
+    }
 }
 
 impl Default for Options {
@@ -53,6 +75,7 @@ impl Default for Options {
             events: Vec::new(),
             settings: SolverSettings::default(),
             max_steps: 100_000_000,
+            trace: None,
         }
     }
 }
@@ -139,6 +162,29 @@ impl Options {
     pub fn max_steps(mut self, n: usize) -> Self {
         self.max_steps = n;
         self
+    }
+
+    /// Tells `sink` every decision of the solve, one line each: every pilot level (its step,
+    /// estimate and observed order), every stretch of the run with its estimate and
+    /// projection, every run started again and why. For finding out why a solve chose what
+    /// it chose, or why it could not verify its answer; the library itself never prints.
+    ///
+    /// ```
+    /// use ecr_runtime::solve::Options;
+    /// let options = Options::tolerance(1e-8).trace(|line| eprintln!("{line}"));
+    /// ```
+    #[must_use]
+    pub fn trace(mut self, sink: impl Fn(&str) + Send + Sync + 'static) -> Self {
+        self.trace = Some(Arc::new(sink));
+        self
+    }
+
+    /// Gives the line `line()` to the trace sink, if there is one (the line is not formatted
+    /// otherwise).
+    pub(super) fn say(&self, line: impl FnOnce() -> String) {
+        if let Some(sink) = &self.trace {
+            sink(&line());
+        }
     }
 
     /// The scaled size of a difference `e` at the state `y`: max_i |e_i| / (atol + rtol |y_i|),

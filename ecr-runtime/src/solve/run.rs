@@ -8,10 +8,16 @@
 //! of a chunk is final until the caller keeps it; [`Runs::checkpoint`] and
 //! [`Runs::restore`] let it integrate the chunk again with another step size.
 
+use std::sync::Arc;
+
+use super::SolveCache;
 use super::dense::DenseStep;
 use super::estimate::{Maxima, TARGET};
 use super::options::Options;
+use super::trail::{Trail, stencil_width};
 use crate::error::{Error, Result};
+use crate::integrate::StepPlan;
+use crate::operator::LinearOperator;
 use crate::stepper::{EcStepper, SolverSettings, StepReport};
 use crate::system::System;
 
@@ -44,6 +50,9 @@ pub(super) struct Point {
     pub(super) diff: f64,
     /// The modelled round-off there, in tolerance units.
     pub(super) noise: f64,
+    /// The estimated error of the interpolation between grid points, in tolerance units (0 at
+    /// grid points and for values computed by steps of the method).
+    pub(super) interp: f64,
 }
 
 /// The differences at a point where the grids of the answer and its 2h check meet.
@@ -122,6 +131,8 @@ pub(super) struct Collect {
     pub(super) grid: bool,
     /// Events: all of them, or only the terminal ones (pilots).
     pub(super) events: bool,
+    /// The outputs of `t_eval` (not in pilots).
+    pub(super) t_eval: bool,
 }
 
 /// The answer's steps between the points where all three runs of a verified solve meet.
@@ -152,13 +163,25 @@ impl Grid {
 /// What [`Runs::restore`] goes back to.
 #[derive(Clone, Debug)]
 pub(super) struct Checkpoint {
-    y: [Vec<f64>; 3],
+    y: [Vec<f64>; 4],
     grid: Grid,
     n: usize,
     total: usize,
     ev_prev: Vec<f64>,
     maxima: Maxima,
     t_eval_next: usize,
+    trail: Option<Trail>,
+    pending: Vec<PendingHit>,
+    sensitivity: f64,
+}
+
+/// A zero of an event function seen between two grid points of the answer, to be located on
+/// the interpolant once the grid around it is known.
+#[derive(Clone, Copy, Debug)]
+struct PendingHit {
+    event: usize,
+    a: (f64, f64),
+    b: (f64, f64),
 }
 
 /// The runs of a solve.
@@ -169,8 +192,9 @@ pub(super) struct Runs<'a, 'o, S: System> {
     /// Whether the checking runs (2h, 3h) run.
     check: bool,
     steppers: Vec<EcStepper<&'a S>>,
-    /// The states: answer, check 2h, check 3h.
-    y: [Vec<f64>; 3],
+    /// The states: answer, check 2h, check 3h, and the 3h run perturbed by rounding (the
+    /// sensitivity run, see [`Runs::perturb_sensitivity`]).
+    y: [Vec<f64>; 4],
     pub(super) grid: Grid,
     /// The answer's steps since `grid.a`.
     pub(super) n: usize,
@@ -194,6 +218,31 @@ pub(super) struct Runs<'a, 'o, S: System> {
     /// The order the differences are expected to show (for the checking runs' stage
     /// tolerances).
     order_hint: f64,
+    /// The rounding amplified by the flow at the last point where the 3h runs met the answer
+    /// (the sensitivity run's difference to the 3h run), in tolerance units.
+    sensitivity: f64,
+    /// The banks of the solve.
+    cache: Arc<SolveCache<S>>,
+    /// The answer's last grid points, where output between them is asked for (`t_eval`,
+    /// events): values there by interpolation.
+    trail: Option<Trail>,
+    /// The interpolation's stencil width.
+    width: usize,
+    /// Zeros of events waiting for the grid around them.
+    pending: Vec<PendingHit>,
+}
+
+/// The largest estimated interpolation error (in tolerance units) at which an output between
+/// grid points takes the interpolant; above it, the output is computed by steps of the method
+/// from the grid point before it.
+const INTERP_MAX: f64 = 0.25;
+
+/// A 64-bit mix of `x` (SplitMix64's finaliser).
+fn splitmix(mut x: u64) -> u64 {
+    x = x.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    x = (x ^ (x >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    x ^ (x >> 31)
 }
 
 /// The round-off model: per step, each component is rounded relative to the whole state
@@ -214,6 +263,7 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
         grid: Grid,
         same_time: f64,
         order_hint: f64,
+        cache: &Arc<SolveCache<S>>,
     ) -> Result<Self> {
         let ev_prev = options
             .events
@@ -227,7 +277,7 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
             r,
             check,
             steppers: Vec::new(),
-            y: [y0.to_vec(), y0.to_vec(), y0.to_vec()],
+            y: [y0.to_vec(), y0.to_vec(), y0.to_vec(), y0.to_vec()],
             grid,
             n: 0,
             total: 0,
@@ -235,16 +285,32 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
             maxima: Maxima::default(),
             t_eval_next: 0,
             base: (grid.a, y0.to_vec(), y0.to_vec()),
-            dense: DenseStep::new(system, r, options.settings),
+            dense: DenseStep::new(system, r, options.settings, cache),
             same_time,
             fine_tolerance: options.settings.tolerance,
             before: y0.to_vec(),
             order_hint,
+            sensitivity: 0.0,
+            cache: Arc::clone(cache),
+            trail: None,
+            width: stencil_width(r),
+            pending: Vec::new(),
         };
+        if options.t_eval.is_some() || options.events.iter().any(|e| !e.terminal) {
+            let w = runs.width;
+            // The stencil, one more point on each side, and the lag behind the newest point.
+            let mut trail = Trail::new(2 * w + 2 * MEET + 4);
+            trail.push(grid.a, y0);
+            runs.trail = Some(trail);
+        }
         if let Some(ts) = &options.t_eval {
             runs.t_eval_next = ts.partition_point(|&t| t < grid.a - same_time);
         }
         runs.set_grid(grid)?;
+        if check {
+            // y₀ as rounded as the answer's states will be.
+            runs.perturb_sensitivity(0, 1.0);
+        }
         Ok(runs)
     }
 
@@ -255,12 +321,12 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
         self.n = 0;
         let settings = self.options.settings;
         if self.steppers.is_empty() {
-            self.steppers.push(EcStepper::with_nodes(
+            self.steppers.push(EcStepper::with_nodes_cached(
                 self.system,
-                self.r,
-                self.r,
+                (self.r, self.r),
                 grid.h,
                 settings,
+                &self.cache,
             )?);
         } else {
             self.steppers[0].set_step_size(grid.h)?;
@@ -268,17 +334,17 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
         if self.check {
             let (tc, tq) = self.check_tolerances();
             self.steppers.truncate(1);
-            for (ratio, tol) in [(2.0, tc), (3.0, tq)] {
+            for (ratio, tol) in [(2.0, tc), (3.0, tq), (3.0, tq)] {
                 let s = SolverSettings {
                     tolerance: tol,
                     ..settings
                 };
-                self.steppers.push(EcStepper::with_nodes(
+                self.steppers.push(EcStepper::with_nodes_cached(
                     self.system,
-                    self.r,
-                    self.r,
+                    (self.r, self.r),
                     ratio * grid.h,
                     s,
+                    &self.cache,
                 )?);
             }
         }
@@ -319,6 +385,9 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
             ev_prev: self.ev_prev.clone(),
             maxima: self.maxima,
             t_eval_next: self.t_eval_next,
+            trail: self.trail.clone(),
+            pending: self.pending.clone(),
+            sensitivity: self.sensitivity,
         }
     }
 
@@ -329,6 +398,9 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
         self.ev_prev = ck.ev_prev.clone();
         self.maxima = ck.maxima;
         self.t_eval_next = ck.t_eval_next;
+        self.trail = ck.trail.clone();
+        self.pending = ck.pending.clone();
+        self.sensitivity = ck.sensitivity;
         let t = ck.grid.time(ck.n);
         self.base = (t, self.y[0].clone(), self.y[1].clone());
         if ck.grid.h != self.grid.h {
@@ -340,6 +412,19 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
         Ok(())
     }
 
+    /// The work of an evaluation of g in the answer's steps, in units of the evaluation itself,
+    /// for comparing orders: where the stepper fuses its sweeps into dense maps (small dense
+    /// systems), a sweep also costs its s²d² multiply-adds, about s·d/8 evaluations of a cheap
+    /// g per stage; elsewhere the operator's work scales with the evaluations.
+    pub(super) fn work_per_g_eval(&self) -> f64 {
+        let st = &self.steppers[0];
+        if st.fused_maps().is_some() {
+            1.0 + (st.s() * self.y[0].len()) as f64 / 8.0
+        } else {
+            1.0
+        }
+    }
+
     /// The time reached.
     pub(super) fn t(&self) -> f64 {
         self.grid.time(self.n)
@@ -349,6 +434,11 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
     /// rounding of the steps (see [`NOISE_FACTOR`]), and the resolution of time itself (a time
     /// t is only known to ε|t|, which is |y'| ε|t| in y; |y'| from the last step).
     fn noise(&self, y: &[f64], total: usize) -> f64 {
+        self.noise_model(y, total).max(self.sensitivity)
+    }
+
+    /// The round-off model without the measured sensitivity.
+    fn noise_model(&self, y: &[f64], total: usize) -> f64 {
         let big = y.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
         let unit = f64::EPSILON.max(self.fine_tolerance / 5.0);
         let walk = NOISE_FACTOR * unit * ((total + 1) as f64).sqrt();
@@ -368,7 +458,7 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
 
     /// The round-off model at the current state of the answer, before any step.
     pub(super) fn noise_at_start(&self) -> f64 {
-        self.noise(&self.y[0], 0)
+        self.noise_model(&self.y[0], 0)
     }
 
     /// The scaled difference of two states, weighted at the first.
@@ -388,11 +478,26 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
     ) -> std::result::Result<StepReport, StepFailure> {
         let t = self.grid.time(from);
         let nominal = ratio as f64 * self.grid.h;
-        let h = if from + ratio >= self.grid.n_end {
-            self.grid.end - t
+        let last = from + ratio >= self.grid.n_end;
+        // What the steps of the stretch leave of it after this one, exactly (rounded once): 0,
+        // or a few units of round-off where n·fl(h) misses the stretch, or the whole shortening
+        // of a last step that h does not divide.
+        let rest = if last {
+            crate::integrate::exact_rest(
+                self.grid.a,
+                self.grid.end,
+                (from + ratio) as f64,
+                self.grid.h,
+            )
         } else {
-            nominal
+            0.0
         };
+        let scale = self.grid.a.abs().max(self.grid.end.abs());
+        let by_rounding = rest.abs() <= StepPlan::TIME_ULPS * f64::EPSILON * scale;
+        // A last step off by round-off is a full step and a move along the vector field by the
+        // difference (its error O(rest²), far below the rounding of time): no φ-bank for a
+        // step size used once.
+        let h = if by_rounding { nominal } else { nominal + rest };
         let short = h != self.steppers[k].step_size();
         let res = (|| {
             if short {
@@ -402,10 +507,18 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
             if short {
                 self.steppers[k].set_step_size(nominal)?;
             }
-            rep
+            let rep = rep?;
+            if by_rounding && rest != 0.0 {
+                drift(self.system, &mut self.y[k], rest)?;
+            }
+            if k == 3 {
+                // Three of the answer's steps of rounding.
+                self.perturb_sensitivity(from + ratio, 3f64.sqrt());
+            }
+            Ok(rep)
         })();
         res.map_err(|error| StepFailure {
-            which: [Which::Fine, Which::Coarse, Which::Third][k],
+            which: [Which::Fine, Which::Coarse, Which::Third, Which::Third][k],
             t,
             h,
             error,
@@ -413,19 +526,48 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
         })
     }
 
-    /// Evaluates the answer (and for a verified solve the check) at t in (base, next meeting
-    /// point] from the base: the answer two steps of half the distance (one step for a fixed
-    /// method), the check one step. Returns the point.
-    fn dense_point(&mut self, t: f64, cost: &mut Cost) -> Result<Point> {
-        let d = self.y[0].len();
-        let dt = t - self.base.0;
+    /// Rounding made visible. The answer's own rounding (and the rounding of y₀) is shared in
+    /// kind by all three runs, so that their differences do not show it where the flow
+    /// amplifies it (chaos, an orbit near a separatrix). The sensitivity run is the 3h run
+    /// again with its state changed after each step (and at its start) by as much as the
+    /// round-off model says the answer's `steps` steps round it, with signs from a fixed
+    /// pseudo-random sequence of the step and the component; its difference to the 3h run is
+    /// that rounding amplified by the flow, and bounds the estimate from below. Deterministic:
+    /// the same numbers for the same run, whatever the thread.
+    fn perturb_sensitivity(&mut self, step: usize, steps: f64) {
+        let unit = f64::EPSILON.max(self.fine_tolerance / 5.0);
+        let y = &mut self.y[3];
+        let big = y.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+        let size = NOISE_FACTOR * unit * steps;
+        let seed = (step as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+        self.steppers[3].perturb_state(y, |i, v| {
+            let sign = if splitmix(seed ^ i as u64) & 1 == 0 {
+                1.0
+            } else {
+                -1.0
+            };
+            v + sign * size * (v.abs() + big)
+        });
+    }
+
+    /// Evaluates the answer (and for a verified solve the check) at t from the grid point
+    /// `(t_b, answer, check)` before it: the answer in two steps of half the distance (one step
+    /// for a fixed method), the check in one step. Returns the point.
+    fn dense_point_from(
+        &mut self,
+        (t_b, ya, yc): (f64, &[f64], &[f64]),
+        t: f64,
+        cost: &mut Cost,
+    ) -> Result<Point> {
+        let d = ya.len();
+        let dt = t - t_b;
         let mut yf = vec![0.0; d];
         let fine_steps = if self.check { 2 } else { 1 };
-        cost.dense(self.dense.advance(&self.base.1, dt, fine_steps, &mut yf)?);
+        cost.dense(self.dense.advance(ya, dt, fine_steps, &mut yf)?);
         let (diff, noise) = if self.check {
-            let mut yc = vec![0.0; d];
-            cost.dense(self.dense.advance(&self.base.2, dt, 1, &mut yc)?);
-            (self.diff(&yf, &yc), self.noise(&yf, self.total))
+            let mut ycc = vec![0.0; d];
+            cost.dense(self.dense.advance(yc, dt, 1, &mut ycc)?);
+            (self.diff(&yf, &ycc), self.noise(&yf, self.total))
         } else {
             (0.0, 0.0)
         };
@@ -434,7 +576,16 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
             y: yf,
             diff,
             noise,
+            interp: 0.0,
         })
+    }
+
+    /// [`dense_point_from`](Self::dense_point_from) the last meeting point (`base`).
+    fn dense_point(&mut self, t: f64, cost: &mut Cost) -> Result<Point> {
+        let (tb, ya, yc) = std::mem::take(&mut self.base);
+        let p = self.dense_point_from((tb, &ya, &yc), t, cost);
+        self.base = (tb, ya, yc);
+        p
     }
 
     /// The answer alone at t (for locating events).
@@ -445,13 +596,57 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
         Ok(())
     }
 
+    /// The answer at t between grid points held by the trail: the interpolant where its
+    /// estimated error is at most [`INTERP_MAX`] (and the trail has the check's data around t
+    /// for a verified solve), else steps of the method from the meeting point (or grid point)
+    /// before t.
+    fn between(&mut self, t: f64, cost: &mut Cost) -> Result<Point> {
+        let d = self.y[0].len();
+        let verified = self.check;
+        let options = self.options;
+        let width = self.width;
+        let system = self.system;
+        if let Some(trail) = self.trail.as_mut() {
+            let mut y = vec![0.0; d];
+            let scaled = |e: &[f64], at: &[f64]| options.scaled(e.iter().copied(), at);
+            if let Some(ip) = trail.interpolate(system, t, width, verified, scaled, &mut y) {
+                if ip.interp <= INTERP_MAX {
+                    return Ok(Point {
+                        t,
+                        y,
+                        diff: ip.diff,
+                        noise: ip.noise,
+                        interp: ip.interp,
+                    });
+                }
+            }
+            // Steps of the method from the grid point before t that the check knows.
+            let from = if verified {
+                trail.meet_before(t)
+            } else {
+                trail.points.iter().rev().find(|p| p.t <= t)
+            };
+            if let Some(p) = from {
+                let (tb, ya) = (p.t, p.y.clone());
+                let yc = p
+                    .meet
+                    .as_ref()
+                    .map_or_else(|| ya.clone(), |m| m.check.clone());
+                return self.dense_point_from((tb, &ya, &yc), t, cost);
+            }
+        }
+        self.dense_point(t, cost)
+    }
+
     /// Outputs of `t_eval` up to `limit` (inclusive, within the same-time tolerance unless
-    /// `exact`), the one at `t_meet` from `at_meet` (its point), the others between grid
-    /// points.
+    /// `exact`): at a meeting point its point `at_meet`, between grid points by
+    /// [`between`](Self::between). With `all` false only those whose interpolation stencil the
+    /// trail already holds around them (the others wait for the next grid points).
     fn outputs_until(
         &mut self,
         limit: f64,
         exact: bool,
+        all: bool,
         at_meet: Option<&Point>,
         chunk: &mut Chunk,
     ) -> Result<()> {
@@ -463,26 +658,82 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
             if te > limit + slack {
                 break;
             }
-            let point = match at_meet {
-                Some(p) if (te - p.t).abs() <= self.same_time => Point { t: te, ..p.clone() },
-                _ if te <= self.base.0 => Point {
-                    t: te,
-                    y: self.base.1.clone(),
-                    diff: if self.check {
-                        self.diff(&self.base.1, &self.base.2)
-                    } else {
-                        0.0
-                    },
-                    noise: if self.check {
-                        self.noise(&self.base.1, self.total)
-                    } else {
-                        0.0
-                    },
-                },
-                _ => self.dense_point(te, &mut chunk.cost)?,
+            let at_grid = self.trail.as_ref().and_then(|tr| {
+                tr.points
+                    .iter()
+                    .rev()
+                    .find(|p| (te - p.t).abs() <= self.same_time)
+            });
+            let point = match (at_meet, at_grid) {
+                (Some(p), _) if (te - p.t).abs() <= self.same_time => Point { t: te, ..p.clone() },
+                (_, Some(g)) if g.meet.is_some() || !self.check => {
+                    let (diff, noise) = g.meet.as_ref().map_or((0.0, 0.0), |m| (m.diff, m.noise));
+                    Point {
+                        t: te,
+                        y: g.y.clone(),
+                        diff,
+                        noise,
+                        interp: 0.0,
+                    }
+                }
+                _ => {
+                    let ready = all
+                        || self
+                            .trail
+                            .as_ref()
+                            .is_none_or(|tr| tr.centred(te, self.width));
+                    if !ready {
+                        break;
+                    }
+                    self.between(te, &mut chunk.cost)?
+                }
             };
             chunk.outputs.push(point);
             self.t_eval_next += 1;
+        }
+        Ok(())
+    }
+
+    /// The zeros of events seen between grid points, located on the interpolant once the
+    /// trail holds the grid around them (all of them with `all`), each a hit with its point.
+    fn resolve_hits(
+        &mut self,
+        all: bool,
+        chunk: &mut Chunk,
+    ) -> std::result::Result<(), AdvanceError> {
+        let mut i = 0;
+        while i < self.pending.len() {
+            let hit = self.pending[i];
+            let ready = all
+                || self
+                    .trail
+                    .as_ref()
+                    .is_none_or(|tr| tr.centred(hit.b.0, self.width));
+            if !ready {
+                i += 1;
+                continue;
+            }
+            self.pending.remove(i);
+            let options: &'o Options = self.options;
+            let event = &options.events[hit.event];
+            let d = self.y[0].len();
+            let mut y = vec![0.0; d];
+            let system = self.system;
+            let width = self.width;
+            let mut cost = Cost::default();
+            let te = match self.trail.as_mut() {
+                Some(trail) => event.locate(hit.a, hit.b, |tt| {
+                    let no_scale = |_: &[f64], _: &[f64]| 0.0;
+                    trail.interpolate(system, tt, width, false, no_scale, &mut y);
+                    event
+                        .value(hit.event, tt, &y)
+                        .map_err(|e| AdvanceError::Other(e, true))
+                })?,
+                None => hit.b.0,
+            };
+            let point = self.between(te, &mut cost)?;
+            add_cost_into(&mut chunk.cost, &cost);
+            chunk.hits.push((hit.event, point));
         }
         Ok(())
     }
@@ -495,6 +746,7 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
             y: self.y[0].clone(),
             diff: 0.0,
             noise: 0.0,
+            interp: 0.0,
         };
         if collect.every_step {
             chunk.outputs.push(p.clone());
@@ -502,7 +754,13 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
         if collect.grid {
             chunk.grid.push((t0, self.y[0].clone(), self.y[1].clone()));
         }
-        self.outputs_until(t0, false, Some(&p), chunk)
+        if let Some(trail) = self.trail.as_mut() {
+            if trail.points.is_empty() {
+                trail.push(t0, &self.y[0]);
+            }
+            trail.mark_meet(0.0, 0.0, &self.y[1]);
+        }
+        self.outputs_until(t0, false, false, Some(&p), chunk)
     }
 
     /// Integrates until the answer has made `n_stop` steps of the stretch (a multiple of
@@ -551,15 +809,19 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
             self.n += 1;
             self.total += 1;
             let t = self.t();
+            let at_end = self.n >= self.grid.n_end;
             if collect.steps {
                 chunk.steps.push((t, self.total, self.y[0].clone()));
             }
+            if let Some(trail) = self.trail.as_mut() {
+                trail.push(t, &self.y[0]);
+            }
 
-            // Events on the answer, located between the base and t.
+            // Events on the answer: a terminal one located at once between the last meeting
+            // point and t, the others when the grid around them is known (on the interpolant).
             let mut stop: Option<Terminal> = None;
             let options: &'o Options = self.options;
             let events = &options.events;
-            let mut found: Vec<(usize, f64)> = Vec::new();
             for (k, e) in events.iter().enumerate() {
                 if !collect.events && !e.terminal {
                     continue;
@@ -569,53 +831,57 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
                     .map_err(|e| AdvanceError::Other(e, true))?;
                 let before = self.ev_prev[k];
                 if e.counts(before, now) {
-                    let te = e.locate((t_prev, before), (t, now), |tt| {
-                        self.dense_fine(tt, &mut scratch, &mut chunk.cost)?;
-                        e.value(k, tt, &scratch)
-                            .map_err(|e| AdvanceError::Other(e, true))
-                    })?;
-                    if e.terminal && stop.is_none_or(|s| te < s.t) {
-                        stop = Some(Terminal { event: k, t: te });
+                    if e.terminal || self.trail.is_none() {
+                        let te = e.locate((t_prev, before), (t, now), |tt| {
+                            self.dense_fine(tt, &mut scratch, &mut chunk.cost)?;
+                            e.value(k, tt, &scratch)
+                                .map_err(|e| AdvanceError::Other(e, true))
+                        })?;
+                        if e.terminal {
+                            if stop.is_none_or(|s| te < s.t) {
+                                stop = Some(Terminal { event: k, t: te });
+                            }
+                        } else {
+                            let point = self.dense_point(te, &mut chunk.cost)?;
+                            chunk.hits.push((k, point));
+                        }
+                    } else {
+                        self.pending.push(PendingHit {
+                            event: k,
+                            a: (t_prev, before),
+                            b: (t, now),
+                        });
                     }
-                    found.push((k, te));
                 }
                 self.ev_prev[k] = now;
             }
             if let Some(stop) = stop {
-                found.retain(|&(_, te)| te <= stop.t);
-            }
-            found.sort_by(|a, b| a.1.total_cmp(&b.1));
-            for (k, te) in found {
-                let point = if (te - t).abs() <= self.same_time && !self.check {
+                // The run ends here: every zero before it, every output up to it.
+                self.resolve_hits(true, chunk)?;
+                chunk.hits.retain(|(_, p)| p.t <= stop.t);
+                let point = if (stop.t - t).abs() <= self.same_time && !self.check {
                     Point {
-                        t: te,
+                        t: stop.t,
                         y: self.y[0].clone(),
                         diff: 0.0,
                         noise: 0.0,
+                        interp: 0.0,
                     }
                 } else {
-                    self.dense_point(te, &mut chunk.cost)?
+                    self.dense_point(stop.t, &mut chunk.cost)?
                 };
-                chunk.hits.push((k, point));
-            }
-            if let Some(stop) = stop {
-                self.outputs_until(stop.t, true, None, chunk)?;
+                chunk.hits.push((stop.event, point.clone()));
+                self.outputs_until(stop.t, true, true, None, chunk)?;
                 if collect.every_step {
-                    let p = chunk
-                        .hits
-                        .iter()
-                        .rev()
-                        .find(|(k, p)| *k == stop.event && p.t == stop.t)
-                        .map(|(_, p)| p.clone());
-                    if let Some(p) = p {
-                        chunk.outputs.push(p);
-                    }
+                    chunk.outputs.push(point);
                 }
                 chunk.terminal = Some(stop);
                 return Ok(());
             }
             if self.check && self.n % 3 == 0 {
                 let rep = self.step(2, 3, self.n - 3)?;
+                chunk.cost.check(&rep);
+                let rep = self.step(3, 3, self.n - 3)?;
                 chunk.cost.check(&rep);
             }
             if self.n % stride != 0 {
@@ -627,6 +893,13 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
                 let rep = self.step(1, 2, self.n - 2)?;
                 chunk.cost.check(&rep);
                 let diff = self.diff(&self.y[0], &self.y[1]);
+                if self.n % MEET == 0 {
+                    // The amplified rounding, where the 3h runs meet the answer.
+                    self.sensitivity = self.options.scaled(
+                        self.y[3].iter().zip(&self.y[2]).map(|(a, b)| a - b),
+                        &self.y[0],
+                    );
+                }
                 let noise = self.noise(&self.y[0], self.total);
                 if self.n % MEET == 0 {
                     // The 2h–3h difference, weighted at the answer.
@@ -641,11 +914,15 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
                     m.noise = m.noise.max(noise);
                 }
                 chunk.meets.push(Meet { t, diff, noise });
+                if let Some(trail) = self.trail.as_mut() {
+                    trail.mark_meet(diff, noise, &self.y[1]);
+                }
                 Point {
                     t,
                     y: self.y[0].clone(),
                     diff,
                     noise,
+                    interp: 0.0,
                 }
             } else {
                 Point {
@@ -653,9 +930,13 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
                     y: self.y[0].clone(),
                     diff: 0.0,
                     noise: 0.0,
+                    interp: 0.0,
                 }
             };
-            self.outputs_until(t, false, Some(&point), chunk)?;
+            if collect.t_eval {
+                self.outputs_until(t, false, at_end, Some(&point), chunk)?;
+            }
+            self.resolve_hits(at_end, chunk)?;
             if collect.grid {
                 chunk.grid.push((t, self.y[0].clone(), self.y[1].clone()));
             }
@@ -666,6 +947,30 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
         }
         Ok(())
     }
+}
+
+/// `to += c`.
+fn add_cost_into(to: &mut Cost, c: &Cost) {
+    super::kept::add_cost(to, c);
+}
+
+/// y ← y + dt·(Ay + g(y)): the state moved along the vector field by a time `dt` of the order of
+/// the rounding of time (the error, O(dt²), is far below ε).
+fn drift<S: System>(system: &S, y: &mut [f64], dt: f64) -> Result<()> {
+    let d = y.len();
+    let mut f = vec![0.0; d];
+    let mut g = vec![0.0; d];
+    let mut scratch = vec![0.0; system.scratch_len()];
+    system.linear().apply(y, &mut f);
+    system.nonlinear(y, &mut g, &mut scratch);
+    for ((v, a), b) in y.iter_mut().zip(&f).zip(&g) {
+        let dy = dt * (a + b);
+        if !dy.is_finite() {
+            return Err(Error::NonFinite("the vector field at the end of the span"));
+        }
+        *v += dy;
+    }
+    Ok(())
 }
 
 enum AdvanceError {

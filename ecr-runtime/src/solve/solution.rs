@@ -327,7 +327,8 @@ impl<S: System> Solution<S> {
             return Ok(());
         }
         let dt = t - dense.t[k];
-        let mut step = DenseStep::new(&*dense.system, dense.r, dense.settings);
+        let cache = std::sync::Arc::new(super::SolveCache::<S>::new(2));
+        let mut step = DenseStep::new(&*dense.system, dense.r, dense.settings, &cache);
         let (mut n, mut g) = dense.evals.get();
         let Some(coarse) = &dense.coarse else {
             let rep = step.advance(fine, dt, 1, out)?;
