@@ -1,191 +1,88 @@
-//! The adversarial suite of issue 25: `Problem::solve` over problem classes that defeat
-//! global-error estimates, at tol = 1e−3 … 1e−11 (rtol = atol = tol), errors measured against
-//! references accurate to ≤ 1e−13 (`tests/common_suite`).
+//! The adversarial suite (issues 25 and 42): `Problem::solve` over 23 problems of 21 classes
+//! built to defeat a global-error estimate, at tol = 1e−3 … 1e−11 (rtol = atol = tol), errors
+//! measured against references accurate to ≤ 1e−13 (`tests/common_suite`).
 //!
 //! ```text
 //! cargo test --release --test solve_suite -- --nocapture                 # table + checks
 //! cargo test --release --test solve_suite -- --ignored generate_references --nocapture
+//! cargo test --release --test solve_suite -- --ignored acceptance        # the unmet targets
+//! cargo bench --bench solve_cost_suite                # cost against the cheapest fixed run
 //! ```
 //!
-//! The second regenerates `tests/data/solve_suite_refs.json` (needed after changing a case;
-//! `stored_references_are_current` fails until then). The table is also written to
-//! `target/tmp/solve_suite.txt`.
+//! The second regenerates the missing or stale entries of `tests/data/solve_suite_refs.json`
+//! (needed after changing a case; `stored_references_are_current` fails until then). The
+//! table is also written to `target/tmp/solve_suite.txt`. The error of a pair is the largest
+//! over its output times of max_i |y_i − ref_i| / (tol + tol |ref_i|); its CPU time is the
+//! thread CPU time of one solve, system and problem built anew.
 //!
-//! The acceptance of issue 25, each its own test: no `Ok` with an error above 10× the
-//! tolerance at any output time; at least 80 % of the pairs `Ok`; the median error/tol of the
+//! The acceptance of issue 42, each its own test: no `Ok` with an error above 10× the
+//! tolerance at any output time; at least 85 % of the pairs `Ok`; the median error/tol of the
 //! `Ok` pairs between 0.05 and 1; none of them below 1e−3 at tol ≥ 1e−9; and every `Ok`
-//! solution's own estimates finite and ≤ 1. Three are not met (one false `Ok`, and the two
-//! against over-accuracy) and are ignored (`cargo test --release --test solve_suite -- --ignored acceptance`); their
-//! measured figures are in docs/solve.md. The error of a pair is the largest over its
-//! output times of max_i |y_i − ref_i| / (tol + tol |ref_i|).
+//! solution's own estimates finite and ≤ 1. Those the solver does not meet yet are ignored,
+//! each with the figure measured; [`no_false_ok_but_the_known_ones`] keeps the false `Ok`
+//! answers from spreading meanwhile. [`one_ulp_of_y0_moves_the_sensitive_cases`] checks that
+//! the suite holds what the promise is hardest to keep on: answers that one ulp of y₀ moves by
+//! more than the tolerance.
 
 mod common_suite;
 
+use std::collections::BTreeMap;
 use std::fmt::Write as _;
-use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::OnceLock;
 use std::time::Instant;
 
+use common_suite::measure::{self, Kind, Row, median, unit_error};
 use common_suite::stored::{self, Stored};
 use common_suite::{Case, Reference, TOLERANCES, cases};
-use ecr::runtime::solve::{Options, Solution, SolveError};
-
-/// How a solve ended.
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Kind {
-    Ok,
-    Unverified,
-    Failed,
-    Panicked,
-}
-
-/// One (problem, tolerance) pair.
-struct Row {
-    case: &'static str,
-    class: &'static str,
-    tol: f64,
-    kind: Kind,
-    /// The worst error/tol over the output times returned (NaN without any).
-    error: f64,
-    /// Where it was worst.
-    t_worst: f64,
-    /// The solve's own estimate (largest over its outputs).
-    estimate: Option<f64>,
-    /// All of the solution's estimates finite and ≤ 1.
-    estimates_within_one: bool,
-    outputs: usize,
-    r: usize,
-    steps: usize,
-    g_evals: usize,
-    seconds: f64,
-    reason: String,
-}
-
-/// max_i |y_i − ref_i| / (tol + tol |ref_i|).
-fn scaled_error(y: &[f64], reference: &[f64], tol: f64) -> f64 {
-    y.iter()
-        .zip(reference)
-        .map(|(y, r)| (y - r).abs() / (tol + tol * r.abs()))
-        .fold(0.0, |m, e| if e.is_nan() || e > m { e } else { m })
-}
-
-/// The reference at the solution's output times.
-fn reference_at(
-    case: &Case,
-    refs: &std::collections::BTreeMap<String, Stored>,
-    ts: &[f64],
-) -> Vec<Vec<f64>> {
-    match case.reference {
-        Reference::Exact(f) => f(ts),
-        Reference::Taylor { .. } | Reference::Runs => {
-            let stored = &refs[case.name];
-            ts.iter()
-                .map(|t| {
-                    let k = stored
-                        .t
-                        .iter()
-                        .position(|s| s == t)
-                        .unwrap_or_else(|| panic!("{}: no reference at t = {t}", case.name));
-                    stored.y[k].clone()
-                })
-                .collect()
-        }
-    }
-}
-
-fn measure(case: &Case, refs: &std::collections::BTreeMap<String, Stored>, tol: f64) -> Row {
-    let start = Instant::now();
-    let outcome = catch_unwind(AssertUnwindSafe(|| case.solve(Options::tolerance(tol))));
-    let seconds = start.elapsed().as_secs_f64();
-    let (kind, solution, reason): (Kind, Option<Solution>, String) = match outcome {
-        Ok(Ok(s)) => (Kind::Ok, Some(s), String::new()),
-        Ok(Err(SolveError::Unverified { reason, solution })) => {
-            (Kind::Unverified, Some(*solution), reason)
-        }
-        Ok(Err(e)) => (Kind::Failed, None, e.to_string()),
-        Err(p) => {
-            let msg = p
-                .downcast_ref::<String>()
-                .cloned()
-                .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
-                .unwrap_or_default();
-            (Kind::Panicked, None, msg)
-        }
-    };
-    let mut row = Row {
-        case: case.name,
-        class: case.class,
-        tol,
-        kind,
-        error: f64::NAN,
-        t_worst: f64::NAN,
-        estimate: None,
-        estimates_within_one: false,
-        outputs: 0,
-        r: 0,
-        steps: 0,
-        g_evals: 0,
-        seconds,
-        reason,
-    };
-    if let Some(sol) = solution {
-        let reference = reference_at(case, refs, &sol.t);
-        let mut worst = f64::NAN;
-        for ((t, y), r) in sol.t.iter().zip(&sol.y).zip(&reference) {
-            let e = scaled_error(y, r, tol);
-            if worst.is_nan() || e > worst || e.is_nan() {
-                worst = e;
-                row.t_worst = *t;
-            }
-        }
-        row.error = worst;
-        row.estimate = sol.error_estimate;
-        row.estimates_within_one = sol
-            .error_estimates
-            .iter()
-            .all(|e| e.is_finite() && *e <= 1.0)
-            && sol.error_estimates.len() == sol.t.len();
-        row.outputs = sol.t.len();
-        row.r = sol.r;
-        row.steps = sol.stats.steps;
-        row.g_evals = sol.stats.total_g_evals();
-    }
-    row
-}
+use ecr::runtime::solve::Options;
+use rayon::prelude::*;
 
 struct Sweep {
     rows: Vec<Row>,
     seconds: f64,
 }
 
+/// The stored references, checked to belong to the cases as defined now.
+fn checked_refs() -> BTreeMap<String, Stored> {
+    let refs = stored::load();
+    for case in cases() {
+        if let Reference::Taylor { .. } | Reference::Runs = case.reference {
+            let stored = refs.get(case.name).unwrap_or_else(|| {
+                panic!(
+                    "{}: no stored reference; run `{}`",
+                    case.name,
+                    stored::COMMAND
+                )
+            });
+            assert_eq!(
+                stored.hash,
+                case.hash(),
+                "{}: the stored reference is stale; run `{}`",
+                case.name,
+                stored::COMMAND
+            );
+        }
+    }
+    refs
+}
+
 /// Every case at every tolerance, once for all the tests of this file.
 fn sweep() -> &'static Sweep {
     static SWEEP: OnceLock<Sweep> = OnceLock::new();
     SWEEP.get_or_init(|| {
-        let refs = stored::load();
+        let refs = checked_refs();
         let start = Instant::now();
-        let mut rows = Vec::new();
-        for case in cases() {
-            if let Reference::Taylor { .. } | Reference::Runs = case.reference {
-                let stored = refs.get(case.name).unwrap_or_else(|| {
-                    panic!(
-                        "{}: no stored reference; run `{}`",
-                        case.name,
-                        stored::COMMAND
-                    )
-                });
-                assert_eq!(
-                    stored.hash,
-                    case.hash(),
-                    "{}: the stored reference is stale; run `{}`",
-                    case.name,
-                    stored::COMMAND
-                );
-            }
-            for &tol in &TOLERANCES {
-                rows.push(measure(&case, &refs, tol));
-            }
-        }
+        let all = cases();
+        let pairs: Vec<(&Case, f64)> = all
+            .iter()
+            .flat_map(|c| TOLERANCES.iter().map(move |&tol| (c, tol)))
+            .collect();
+        // On the threads of rayon's pool (one per core): each solve runs on one thread and is
+        // timed in that thread's CPU time, so the times are those of a solve alone.
+        let rows = pairs
+            .par_iter()
+            .map(|&(case, tol)| measure::measure(case, &refs, tol))
+            .collect();
         Sweep {
             rows,
             seconds: start.elapsed().as_secs_f64(),
@@ -200,15 +97,6 @@ fn is_false_ok(r: &Row) -> bool {
 
 fn oks() -> Vec<&'static Row> {
     sweep().rows.iter().filter(|r| r.kind == Kind::Ok).collect()
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    match v.len() {
-        0 => f64::NAN,
-        n if n % 2 == 1 => v[n / 2],
-        n => 0.5 * (v[n / 2 - 1] + v[n / 2]),
-    }
 }
 
 fn fmt_opt(x: Option<f64>) -> String {
@@ -227,14 +115,12 @@ fn describe(r: &Row) -> String {
     )
 }
 
-/// The table and the summary (with `--nocapture`; also in `target/tmp/solve_suite.txt`).
-#[test]
-fn table_and_summary() {
-    let sweep = sweep();
+/// The table of every pair.
+pub fn pair_table(rows: &[Row]) -> String {
     let mut s = String::new();
     writeln!(
         s,
-        "{:<13} {:<24} {:>6} {:<10} {:>10} {:>8} {:>9} {:>2} {:>7} {:>9} {:>5} {:>7}",
+        "{:<15} {:<24} {:>6} {:<10} {:>10} {:>8} {:>9} {:>2} {:>7} {:>9} {:>5} {:>8}",
         "problem",
         "class",
         "tol",
@@ -246,13 +132,13 @@ fn table_and_summary() {
         "steps",
         "g evals",
         "outs",
-        "secs"
+        "cpu s"
     )
     .unwrap();
-    for r in &sweep.rows {
+    for r in rows {
         writeln!(
             s,
-            "{:<13} {:<24} {:>6.0e} {:<10} {:>10.3e} {:>8.3} {:>9} {:>2} {:>7} {:>9} {:>5} {:>7.3}{}",
+            "{:<15} {:<24} {:>6.0e} {:<10} {:>10.3e} {:>8.3} {:>9} {:>2} {:>7} {:>9} {:>5} {:>8.4}{}",
             r.case,
             r.class,
             r.tol,
@@ -269,6 +155,67 @@ fn table_and_summary() {
         )
         .unwrap();
     }
+    s
+}
+
+/// Per problem: the `Ok` pairs, their error/tol (median, largest, smallest), where not `Ok`.
+pub fn problem_table(rows: &[Row]) -> String {
+    let mut s = String::new();
+    writeln!(
+        s,
+        "| problem | class | Ok of {} | error/tol of the Ok: median | largest | smallest | \
+         not Ok at | CPU s (all tols) |",
+        TOLERANCES.len()
+    )
+    .unwrap();
+    writeln!(s, "|---|---|---|---|---|---|---|---|").unwrap();
+    let mut names: Vec<&str> = rows.iter().map(|r| r.case).collect();
+    names.dedup();
+    for name in names {
+        let of: Vec<&Row> = rows.iter().filter(|r| r.case == name).collect();
+        let ok: Vec<f64> = of
+            .iter()
+            .filter(|r| r.kind == Kind::Ok)
+            .map(|r| r.error)
+            .collect();
+        let not: Vec<String> = of
+            .iter()
+            .filter(|r| r.kind != Kind::Ok)
+            .map(|r| format!("{:.0e}", r.tol))
+            .collect();
+        let e = |x: f64| {
+            if x.is_finite() {
+                format!("{x:.1e}")
+            } else {
+                "–".into()
+            }
+        };
+        writeln!(
+            s,
+            "| {} | {} | {} | {} | {} | {} | {} | {:.2} |",
+            name,
+            of[0].class,
+            ok.len(),
+            e(median(ok.clone())),
+            e(ok.iter().copied().fold(f64::NAN, f64::max)),
+            e(ok.iter().copied().fold(f64::NAN, f64::min)),
+            if not.is_empty() {
+                "–".into()
+            } else {
+                not.join(", ")
+            },
+            of.iter().map(|r| r.seconds).sum::<f64>()
+        )
+        .unwrap();
+    }
+    s
+}
+
+/// The table and the summary (with `--nocapture`; also in `target/tmp/solve_suite.txt`).
+#[test]
+fn table_and_summary() {
+    let sweep = sweep();
+    let mut s = pair_table(&sweep.rows);
     writeln!(s, "\nwhy not Ok:").unwrap();
     for r in sweep.rows.iter().filter(|r| r.kind != Kind::Ok) {
         writeln!(
@@ -278,30 +225,40 @@ fn table_and_summary() {
         )
         .unwrap();
     }
+    writeln!(s, "\n{}", problem_table(&sweep.rows)).unwrap();
     let oks = oks();
     let n = sweep.rows.len();
     let false_ok = oks.iter().filter(|r| is_false_ok(r)).count();
     let low = oks
         .iter()
-        .filter(|r| r.tol >= 1e-9)
-        .map(|r| r.error)
-        .fold(f64::INFINITY, f64::min);
+        .filter(|r| r.tol >= 1e-9 && r.error < 1e-3)
+        .count();
     let mut classes: Vec<&str> = sweep.rows.iter().map(|r| r.class).collect();
+    classes.sort_unstable();
     classes.dedup();
     writeln!(
         s,
-        "\nsummary: {} problems ({} classes), {n} pairs in {:.1} s: {} Ok ({:.1} %), {} Unverified, \
-         {} Failed, {} panicked; false Ok (error > 10 tol): {false_ok}; median error/tol of Ok: \
-         {:.3e}; smallest error/tol of Ok at tol >= 1e-9: {low:.3e}; Ok with an estimate above 1 \
-         or not finite: {}",
+        "summary: {} problems ({} classes), {n} pairs in {:.1} s ({:.1} s of solve CPU): {} Ok \
+         ({:.1} %), {} Unverified, {} Failed, {} panicked; false Ok (error > 10 tol): \
+         {false_ok}; median error/tol of Ok: {:.3e}; Ok at tol >= 1e-9 below 1e-3 of it: \
+         {low}; Ok with an estimate above 1 or not finite: {}",
         cases().len(),
         classes.len(),
         sweep.seconds,
+        sweep.rows.iter().map(|r| r.seconds).sum::<f64>(),
         oks.len(),
         100.0 * oks.len() as f64 / n as f64,
-        sweep.rows.iter().filter(|r| r.kind == Kind::Unverified).count(),
+        sweep
+            .rows
+            .iter()
+            .filter(|r| r.kind == Kind::Unverified)
+            .count(),
         sweep.rows.iter().filter(|r| r.kind == Kind::Failed).count(),
-        sweep.rows.iter().filter(|r| r.kind == Kind::Panicked).count(),
+        sweep
+            .rows
+            .iter()
+            .filter(|r| r.kind == Kind::Panicked)
+            .count(),
         median(oks.iter().map(|r| r.error).collect()),
         oks.iter().filter(|r| !r.estimates_within_one).count(),
     )
@@ -309,14 +266,15 @@ fn table_and_summary() {
     eprintln!("{s}");
     let dir = env!("CARGO_TARGET_TMPDIR");
     let _ = std::fs::write(format!("{dir}/solve_suite.txt"), &s);
-    assert!(classes.len() >= 8, "{} classes", classes.len());
+    assert!(classes.len() >= 16, "{} classes", classes.len());
 }
 
-/// Acceptance: no `Ok` whose error exceeds 10× the tolerance at any output time. Not met:
-/// Lorenz at 1e−11 returns `Ok` with 16× the tolerance (its estimate 0.41; measured
-/// 2026-11-25, docs/solve.md). [`no_false_ok_but_the_known_one`] keeps the rest in CI.
+/// Acceptance (issue 42): no `Ok` whose error exceeds 10× the tolerance at any output time.
+/// Not met on 2026-11-27: the ten pairs of [`KNOWN_FALSE_OK`], all where one ulp of y₀ moves
+/// the answer by more than the tolerance (see [`one_ulp_of_y0_moves_the_sensitive_cases`]):
+/// the checking runs share the amplified rounding and their differences do not show it.
 #[test]
-#[ignore = "target not met: lorenz at 1e-11 is Ok with 16x the tolerance (docs/solve.md)"]
+#[ignore = "target not met: 10 false Ok (chaos, separatrices), up to 1e4x the tolerance (KNOWN_FALSE_OK)"]
 fn acceptance_no_false_ok() {
     let bad: Vec<String> = oks()
         .iter()
@@ -332,22 +290,42 @@ fn acceptance_no_false_ok() {
     );
 }
 
-/// The false `Ok` of the suite is the one known (Lorenz at 1e−11) and no other: a new one
-/// fails here, and so does the known one's repair (then the acceptance test above is
-/// un-ignored instead).
+/// The false `Ok` answers measured on 2026-11-27 with the controller of issue 25, and their
+/// error/tol: lorenz 19; lorenz_long 22, 199, 617; henon_heiles 30, 26; pendulum_sep 26, 239;
+/// duffing_sep 737, 1.0e4.
+const KNOWN_FALSE_OK: &[(&str, f64)] = &[
+    ("lorenz", 1e-11),
+    ("lorenz_long", 1e-9),
+    ("lorenz_long", 1e-10),
+    ("lorenz_long", 1e-11),
+    ("henon_heiles", 1e-10),
+    ("henon_heiles", 1e-11),
+    ("pendulum_sep", 1e-10),
+    ("pendulum_sep", 1e-11),
+    ("duffing_sep", 1e-6),
+    ("duffing_sep", 1e-8),
+];
+
+/// No false `Ok` but those known: a new one fails here (the known ones may disappear: then
+/// shrink the list, and when it is empty un-ignore [`acceptance_no_false_ok`]).
 #[test]
-fn no_false_ok_but_the_known_one() {
-    let bad: Vec<(&str, f64)> = oks()
+fn no_false_ok_but_the_known_ones() {
+    let new: Vec<String> = oks()
         .iter()
-        .filter(|r| is_false_ok(r))
-        .map(|r| (r.case, r.tol))
+        .filter(|r| is_false_ok(r) && !KNOWN_FALSE_OK.contains(&(r.case, r.tol)))
+        .map(|r| describe(r))
         .collect();
-    assert_eq!(bad, [("lorenz", 1e-11)], "the false Ok answers changed");
+    assert!(
+        new.is_empty(),
+        "false Ok answers besides the known ones:\n  {}",
+        new.join("\n  ")
+    );
 }
 
-/// Acceptance: at least 80 % of the (problem, tolerance) pairs `Ok`.
+/// Acceptance (issue 42): at least 85 % of the (problem, tolerance) pairs `Ok` (94.2 % on
+/// 2026-11-27, the ten false `Ok` included: without them 89.4 %).
 #[test]
-fn acceptance_at_least_80_percent_ok() {
+fn acceptance_at_least_85_percent_ok() {
     let n = sweep().rows.len();
     let ok = oks().len();
     let not: Vec<String> = sweep()
@@ -357,19 +335,17 @@ fn acceptance_at_least_80_percent_ok() {
         .map(|r| format!("{} {:.0e} {:?}", r.case, r.tol, r.kind))
         .collect();
     assert!(
-        ok as f64 >= 0.8 * n as f64,
-        "{ok} of {n} pairs Ok ({:.1} %, need 80 %); not Ok: {}",
+        ok as f64 >= 0.85 * n as f64,
+        "{ok} of {n} pairs Ok ({:.1} %, need 85 %); not Ok: {}",
         100.0 * ok as f64 / n as f64,
         not.join(", ")
     );
 }
 
-/// Acceptance: the median error/tol of the `Ok` pairs between 0.05 and 1 (the tolerance is
-/// neither missed nor wasted). Not met: the median is 3.9e−3 (measured 2026-11-25; the
-/// checking runs' estimate is conservative before the asymptotic regime, and every output
-/// time is a meeting point of the runs, which holds the step down; docs/solve.md).
+/// Acceptance (issue 42): the median error/tol of the `Ok` pairs between 0.05 and 1 (the
+/// tolerance neither missed nor wasted). Not met on 2026-11-27: the median is 2.7e−3.
 #[test]
-#[ignore = "target not met: median error/tol 3.9e-3 (docs/solve.md, the suite)"]
+#[ignore = "target not met: median error/tol of the Ok pairs 2.7e-3"]
 fn acceptance_median_error_of_ok_between_0_05_and_1() {
     let m = median(oks().iter().map(|r| r.error).collect());
     assert!(
@@ -379,11 +355,11 @@ fn acceptance_median_error_of_ok_between_0_05_and_1() {
     );
 }
 
-/// Acceptance: no `Ok` pair at tol ≥ 1e−9 with an error below 1e−3 of the tolerance (a
-/// thousandfold waste; below 1e−9 the round-off floor may force it). Not met: 28 of the 92
-/// `Ok` pairs (measured 2026-11-25; docs/solve.md).
+/// Acceptance (issue 42): no `Ok` pair at tol ≥ 1e−9 with an error below 1e−3 of the
+/// tolerance (a thousandfold waste; below 1e−9 the round-off floor may force it). Not met on
+/// 2026-11-27: 68 such pairs.
 #[test]
-#[ignore = "target not met: 28 Ok pairs below 1e-3 of the tolerance (docs/solve.md)"]
+#[ignore = "target not met: 68 Ok pairs at tol >= 1e-9 below 1e-3 of the tolerance"]
 fn acceptance_no_ok_far_below_tolerance() {
     let bad: Vec<String> = oks()
         .iter()
@@ -398,7 +374,8 @@ fn acceptance_no_ok_far_below_tolerance() {
     );
 }
 
-/// Every `Ok` solution's own estimates are finite and ≤ 1, one per output.
+/// Acceptance (issues 25 and 42): every `Ok` solution's own estimates are finite and ≤ 1,
+/// one per output.
 #[test]
 fn ok_estimates_are_finite_and_within_one() {
     let bad: Vec<String> = oks()
@@ -411,6 +388,106 @@ fn ok_estimates_are_finite_and_within_one() {
         "{} Ok solutions have an estimate above 1, not finite, or missing:\n  {}",
         bad.len(),
         bad.join("\n  ")
+    );
+}
+
+/// The cases on which amplified rounding decides the answer at tight tolerances (chaos, a
+/// separatrix, a close passage), and by at least how much one ulp of y₀ must move them at
+/// 1e−11, in units of that tolerance. They are in the suite for that: if a change of a case
+/// loses it, this fails.
+const SENSITIVE: &[(&str, f64)] = &[
+    ("lorenz", 1.0),
+    ("lorenz_long", 10.0),
+    ("henon_heiles", 10.0),
+    ("pendulum", 1.0),
+    ("pendulum_sep", 10.0),
+    ("duffing_sep", 10.0),
+    ("kepler_passage", 10.0),
+];
+
+/// y₀ with component `i` moved by one ulp away from zero.
+fn one_ulp(y0: &[f64], i: usize) -> Vec<f64> {
+    let mut y = y0.to_vec();
+    let v = y[i];
+    y[i] = f64::from_bits(v.abs().to_bits() + 1).copysign(v);
+    y
+}
+
+/// The largest change one ulp of a (nonzero) component of y₀ makes to a fixed run (the
+/// case's `fine` ECrP run) at the output times, in the suite's unit (divided by tol: in
+/// tolerances), the component, and the error of that run against the reference (NaN while
+/// the stored reference is missing or stale).
+fn sensitivity(case: &Case, refs: &BTreeMap<String, Stored>) -> (f64, usize, f64) {
+    let (r, h) = case.fine;
+    let base = case
+        .solve(Options::fixed(r, h))
+        .unwrap_or_else(|e| panic!("{}: fixed EC{r}P h = {h}: {e}", case.name));
+    let current = match case.reference {
+        Reference::Exact(_) => true,
+        _ => refs.get(case.name).is_some_and(|s| s.hash == case.hash()),
+    };
+    let own = if current {
+        measure::worst_unit_error(case, refs, &base).0
+    } else {
+        f64::NAN
+    };
+    let mut worst = (0.0, 0);
+    for i in (0..case.y0.len()).filter(|&i| case.y0[i] != 0.0) {
+        let moved = case
+            .solve_from(one_ulp(&case.y0, i), Options::fixed(r, h))
+            .unwrap_or_else(|e| panic!("{}: perturbed fixed run: {e}", case.name));
+        let change = base
+            .y
+            .iter()
+            .zip(&moved.y)
+            .map(|(a, b)| unit_error(b, a))
+            .fold(0.0, f64::max);
+        if change > worst.0 {
+            worst = (change, i);
+        }
+    }
+    (worst.0, worst.1, own)
+}
+
+/// One ulp of y₀ moves each sensitive case's answer by at least its bound (in tolerances at
+/// 1e−11); prints the change at every tolerance (`--nocapture`). Pairs where it exceeds the
+/// tolerance cannot be answered `Ok` honestly unless the solver's own rounding happens to be
+/// smaller than one ulp of y₀.
+#[test]
+fn one_ulp_of_y0_moves_the_sensitive_cases() {
+    let refs = stored::load();
+    let all = cases();
+    let mut s = String::from(
+        "one ulp of y0 (the component that moves it most), in tolerances at each tol:\n",
+    );
+    write!(
+        s,
+        "{:<15} {:>9} {:>9} {:>2}",
+        "problem", "own err", "change", "i"
+    )
+    .unwrap();
+    for tol in TOLERANCES {
+        write!(s, " {:>8.0e}", tol).unwrap();
+    }
+    writeln!(s).unwrap();
+    let mut short = Vec::new();
+    for &(name, bound) in SENSITIVE {
+        let case = all.iter().find(|c| c.name == name).expect("a case");
+        let (change, i, own) = sensitivity(case, &refs);
+        write!(s, "{name:<15} {own:>9.1e} {change:>9.1e} {i:>2}").unwrap();
+        for tol in TOLERANCES {
+            write!(s, " {:>8.1e}", change / tol).unwrap();
+        }
+        writeln!(s).unwrap();
+        if change / 1e-11 < bound {
+            short.push(format!("{name}: {:.2} < {bound}", change / 1e-11));
+        }
+    }
+    eprintln!("{s}");
+    assert!(
+        short.is_empty(),
+        "cases that lost their sensitivity: {}",
+        short.join(", ")
     );
 }
 
@@ -499,11 +576,16 @@ fn exact_solutions_in_f64_match_high_precision() {
     }
 }
 
-/// Regenerates `tests/data/solve_suite_refs.json` (see the module docs).
+/// Regenerates the missing or stale entries of `tests/data/solve_suite_refs.json` (all of
+/// them with `ECR_SUITE_REFS=all`; see the module docs).
 #[test]
 #[ignore = "minutes: regenerates the stored references"]
 fn generate_references() {
-    let value = stored::generate(&cases());
+    let previous = match std::env::var("ECR_SUITE_REFS").as_deref() {
+        Ok("all") => None,
+        _ => stored::load_json(),
+    };
+    let value = stored::generate(&cases(), previous.as_ref());
     let text = stored::render(&value, 0);
     std::fs::create_dir_all(std::path::Path::new(stored::PATH).parent().unwrap()).unwrap();
     std::fs::write(stored::PATH, text + "\n").unwrap();

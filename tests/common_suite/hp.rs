@@ -57,6 +57,9 @@ impl Hp {
     pub fn exp(&mut self, a: &BigFloat) -> BigFloat {
         a.exp(self.prec, RM, &mut self.cc)
     }
+    pub fn atan(&mut self, a: &BigFloat) -> BigFloat {
+        a.atan(self.prec, RM, &mut self.cc)
+    }
     /// Σ_{j=0}^{k} a_j b_{k−j}: the k-th coefficient of a product of series.
     pub fn cauchy(&self, a: &[BigFloat], b: &[BigFloat], k: usize) -> BigFloat {
         let mut s = self.mul(&a[0], &b[k]);
