@@ -318,7 +318,21 @@ impl Oscillator {
                 }
             }
         }
-        check_bank_values(vals.iter().copied())?;
+        check_bank_values(vals.iter().copied(), || {
+            let top = lambda.iter().fold(f64::INFINITY, |m, &l| m.min(l));
+            let nu = self
+                .damping
+                .iter()
+                .flatten()
+                .fold(f64::NEG_INFINITY, |m, &v| m.max(v));
+            let tmax = taus.iter().fold(0.0_f64, |m, t| m.max(t.abs()));
+            format!(
+                "the blocks [[0, 1], [-λ, ν]] grow like e^(τ·h·√(-λ)) for a negative \
+                 eigenvalue λ of Ω and like e^(τ·h·ν) for a damping ν > 0: here the smallest λ \
+                 is {top:.3e}, the largest ν {nu:.3e}, and τ·h up to {:.3e}",
+                tmax * h
+            )
+        })?;
         let dd = match (0..taus.len()).find(|&i| f.carries_dd(i)) {
             Some(node) => self.dd_propagator(h, node)?,
             None => None,

@@ -177,13 +177,28 @@ pub(super) fn spectral_entries<T: Copy>(
             zero
         }
     });
-    check_bank_values(phis.iter().flat_map(|v| [v.re, v.im]))?;
+    // The cause of an overflow: the largest real part of z = τ h μ.
+    let cause = || {
+        let mut top = f64::NEG_INFINITY;
+        for t in taus {
+            for &v in spectrum.values() {
+                top = top.max(arg(t * h, v).re);
+            }
+        }
+        format!(
+            "the largest real part of τ·h·λ over the eigenvalues λ of A is {top:.3e}, and \
+             |e^z| passes f64::MAX at Re z = {:.2}",
+            f64::MAX.ln()
+        )
+    };
+    check_bank_values(phis.iter().flat_map(|v| [v.re, v.im]), cause)?;
     check_bank_values(
         increments
             .iter()
             .flatten()
             .flatten()
             .flat_map(|v| [v.re, v.im]),
+        cause,
     )?;
     Ok((phis, increments))
 }
