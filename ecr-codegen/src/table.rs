@@ -2,7 +2,7 @@
 //! exact data and certified `f64` roundings side by side. One model, rendered four ways
 //! (Rust source, tokens, JSON, Markdown) by [`crate::render`].
 
-use crate::interval::Interval;
+use crate::interval::{Interval, matmul_rounded};
 use crate::legendre::{beta, c_matrix, shifted_legendre};
 use crate::poly::Poly;
 use crate::quadrature::{Quadrature, QuadratureKind, working_bits};
@@ -226,29 +226,24 @@ impl MethodTable {
             })
             .collect();
         let (abar, bbar) = if family == Family::Rknc {
-            let abar = q
+            // c_i^{k+2}/(k+2)!, i < s, k < r: the same operations for every j, done once;
+            // then Ā = C W as one product of interval matrices.
+            let powers: Vec<Vec<Interval>> = q
                 .nodes
                 .iter()
                 .map(|ci| {
-                    // c_i^{k+2}/(k+2)!, k < r: the same operations for every j, done once.
-                    let cks: Vec<Interval> = (0..r)
+                    (0..r)
                         .map(|k| {
-                            (0..k + 2).fold(
-                                Interval::point(inv_factorial(k as u64 + 2)),
-                                |p, _| p.mul(ci).rounded(work),
-                            )
-                        })
-                        .collect();
-                    certify_all(
-                        (0..s)
-                            .map(|j| {
-                                (0..r).fold(Interval::point(Rat::zero()), |acc, k| {
-                                    acc.add(&cks[k].mul(&w_iv[k][j]).rounded(work))
-                                })
+                            (0..k + 2).fold(Interval::point(inv_factorial(k as u64 + 2)), |p, _| {
+                                p.mul(ci).rounded(work)
                             })
-                            .collect(),
-                    )
+                        })
+                        .collect()
                 })
+                .collect();
+            let abar = matmul_rounded(&powers, &w_iv, work)
+                .into_iter()
+                .map(certify_all)
                 .collect::<Option<Vec<_>>>()?;
             let bbar = certify_all(
                 (0..s)
@@ -393,10 +388,10 @@ mod tests {
                     (0..s)
                         .map(|j| {
                             (0..r).fold(Interval::point(Rat::zero()), |acc, k| {
-                                let ck = (0..k + 2).fold(
-                                    Interval::point(inv_factorial(k as u64 + 2)),
-                                    |p, _| p.mul(ci).rounded(work),
-                                );
+                                let ck = (0..k + 2)
+                                    .fold(Interval::point(inv_factorial(k as u64 + 2)), |p, _| {
+                                        p.mul(ci).rounded(work)
+                                    });
                                 acc.add(&ck.mul(&w_iv[k][j]).rounded(work))
                             })
                         })
