@@ -250,6 +250,28 @@ impl LinearOperator for Oscillator {
         2 * self.omega.dim()
     }
 
+    /// Four numbers per mode, slot and node; for a dense Ω (or one with a dense damping) the
+    /// double-double propagator of the full 2n × 2n matrix and its scaling and squaring's few
+    /// working matrices (16 n² numbers at most), otherwise 16 numbers per mode; a workspace of
+    /// `(n + 2)·2m` numbers when Ω has a dense basis.
+    fn bank_bytes(&self, len: usize, n: usize) -> Option<(usize, usize)> {
+        let m = self.omega.dim();
+        let dense = self.omega.basis().is_some() || self.damping_matrix.is_some();
+        let vals = len.checked_mul(n.checked_add(1)?)?.checked_mul(4 * m)?;
+        let dd = if dense {
+            m.checked_mul(m)?.checked_mul(16)?
+        } else {
+            m.checked_mul(16)?
+        };
+        let bank = vals.checked_add(dd)?.checked_mul(8)?;
+        let workspace = if self.omega.basis().is_some() {
+            n.checked_add(2)?.checked_mul(2 * m)?.checked_mul(8)?
+        } else {
+            0
+        };
+        Some((bank, workspace))
+    }
+
     /// `(q, p) ↦ (p, −Ωq)`.
     fn apply(&self, x: &[f64], y: &mut [f64]) {
         let n = self.omega.dim();

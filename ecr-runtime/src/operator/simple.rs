@@ -9,7 +9,7 @@ use super::checks::{
     real_overflow_cause,
 };
 use super::entries::{Distinct, NodeFunctions};
-use super::traits::{LinearOperator, PhiBank};
+use super::traits::{LinearOperator, PhiBank, byte_sum};
 use crate::error::{Error, Result};
 use crate::phi::{exp_dd, two_prod, two_sum};
 use crate::storage::ensure_allocatable;
@@ -58,6 +58,13 @@ impl LinearOperator for Zero {
     fn apply(&self, x: &[f64], y: &mut [f64]) {
         debug_assert_eq!(x.len(), self.dim);
         y.fill(0.0);
+    }
+
+    fn bank_bytes(&self, len: usize, n: usize) -> Option<(usize, usize)> {
+        Some((
+            byte_sum(&[(len.checked_mul(n.checked_add(1)?)?, 8), (len, 1)])?,
+            0,
+        ))
     }
 
     fn phi_bank(&self, h: f64, taus: &[f64], p: usize) -> Result<ZeroBank> {
@@ -206,6 +213,13 @@ impl LinearOperator for Scalar {
         }
     }
 
+    fn bank_bytes(&self, len: usize, n: usize) -> Option<(usize, usize)> {
+        Some((
+            byte_sum(&[(len.checked_mul(n.checked_add(1)?)?, 8), (len, 16)])?,
+            0,
+        ))
+    }
+
     fn phi_bank(&self, h: f64, taus: &[f64], p: usize) -> Result<ScalarBank> {
         self.bank(h, taus, p, NodeFunctions::phi())
     }
@@ -350,7 +364,7 @@ impl Diagonal {
 /// multiplicities) gets one column of numbers per distinct entry and an index (`u8`, `u16` or
 /// `u32`, the smallest that fits) from each entry to its column, when that at least halves the
 /// storage; otherwise one column per entry. The numbers, and so every step, are the same bit
-/// for bit either way ([`Diagonal::bank_bytes`] says which is taken and its size).
+/// for bit either way ([`Diagonal::bank_size`] says which is taken and its size).
 #[derive(Debug, Clone, PartialEq)]
 pub struct DiagonalBank {
     dim: usize,
@@ -416,7 +430,7 @@ fn index_width(distinct: usize) -> Option<usize> {
 }
 
 /// How a [`DiagonalBank`] of a given diagonal is stored, and its size
-/// ([`Diagonal::bank_bytes`]).
+/// ([`Diagonal::bank_size`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct DiagonalBankSize {
     /// The columns of numbers per function and node: the dimension, or the number of distinct
@@ -482,6 +496,14 @@ impl LinearOperator for Diagonal {
         }
     }
 
+    /// The kernel bank's size from [`Diagonal::bank_size`] (one node carried in double-double)
+    /// and the scratch of its construction (sorted (bits, entry) pairs and an index per entry,
+    /// 24 bytes per entry); no workspace. O(d log d).
+    fn bank_bytes(&self, len: usize, n: usize) -> Option<(usize, usize)> {
+        let building = self.diag.len().checked_mul(24)?;
+        Some((self.bank_size(len, n, 1).bytes?.checked_add(building)?, 0))
+    }
+
     fn phi_bank(&self, h: f64, taus: &[f64], p: usize) -> Result<DiagonalBank> {
         self.bank(h, taus, p, NodeFunctions::phi())
     }
@@ -495,7 +517,7 @@ impl Diagonal {
     /// How the φ- or kernel bank for `len` nodes and the functions `0..=p` is stored and its
     /// bytes, `carried` of the nodes carrying their propagator in double-double (the node
     /// τ = 1 of a kernel bank, none in a φ-bank). O(d log d): it counts the distinct entries.
-    pub fn bank_bytes(&self, len: usize, p: usize, carried: usize) -> DiagonalBankSize {
+    pub fn bank_size(&self, len: usize, p: usize, carried: usize) -> DiagonalBankSize {
         let distinct = Distinct::real(&self.diag);
         DiagonalBankSize::new(self.diag.len(), distinct.len(), len, p, carried, true)
     }
@@ -816,7 +838,7 @@ mod tests {
                 };
                 assert_eq!(width, index_width(distinct).unwrap());
                 assert_eq!((shared.cols, own.cols), (distinct, d));
-                let size = op.bank_bytes(taus.len(), p, usize::from(kernels));
+                let size = op.bank_size(taus.len(), p, usize::from(kernels));
                 assert_eq!((size.columns, size.index_bytes), (distinct, width));
                 assert!(2 * size.bytes.unwrap() <= 8 * own.phis.len());
                 let lo: usize = shared.lo.iter().flatten().map(Vec::len).sum();

@@ -67,6 +67,7 @@ mod fused;
 mod gemv;
 mod iteration;
 mod kernel;
+mod memory;
 mod newton;
 mod parallel;
 mod predictor;
@@ -79,6 +80,7 @@ pub use buffers::{BufferParts, Buffers, StaticBuffers, VecBuffers};
 pub use fused::{FUSED_MAX_ENTRIES, FusedMaps, fuses_stages, stage_matrices};
 pub use gemv::gemv_cm;
 pub use kernel::{FixedKernel, Kernel, RuntimeKernel};
+pub use memory::{StepperBytes, ec_stepper_bytes};
 pub use newton::NEWTON_REFRESH_THETA;
 pub use settings::{
     PARALLEL_MIN_DIM, Predictor, SolverSettings, StageScale, StageSolver, StepReport, SweepLimit,
