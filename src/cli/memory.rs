@@ -12,7 +12,7 @@ use std::fs;
 /// Under an address-space limit (`ulimit -v`), keeps glibc's malloc to its main arena.
 ///
 /// glibc gives each thread that allocates its own arena, and reserves 64 MiB of address space
-/// for each (128 MiB while it aligns one): the two threads of rayon's pool and the SIGINT
+/// for each (128 MiB while it aligns one): the two threads of rayon's pool and the signal
 /// thread reserved 192 MiB that no estimate of the memory a run uses counts, and under
 /// `ulimit -v 200000` an NLS run with N = 65536 aborted when a worker's arena won the race for
 /// the address space its own buffers needed. Reservations cost nothing where the address space
@@ -119,9 +119,17 @@ pub fn gib(bytes: f64) -> String {
 }
 
 /// `Err` with one line naming `what` if `need` bytes exceed [`budget`].
+///
+/// Past the budget, the rule of the library's `ensure_allocatable` applies too: the whole
+/// need must be granted as one reservation (`try_reserve_exact`, freed at once), which under
+/// `ulimit -v` proves the address space is there.
 pub fn check(what: &str, need: f64) -> Result<(), UsageError> {
     let budget = budget();
-    if need <= budget.bytes {
+    let reservable = || {
+        need.is_finite()
+            && ecr_runtime::storage::ensure_bytes_allocatable(what, Some(need as usize)).is_ok()
+    };
+    if need <= budget.bytes && reservable() {
         return Ok(());
     }
     Err(UsageError(format!(
