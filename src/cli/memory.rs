@@ -118,28 +118,29 @@ pub fn gib(bytes: f64) -> String {
     }
 }
 
-/// `Err` with one line naming `what` if `need` bytes exceed [`budget`].
-///
-/// Past the budget, the rule of the library's `ensure_allocatable` applies too: the whole
-/// need must be granted as one reservation (`try_reserve_exact`, freed at once), which under
-/// `ulimit -v` proves the address space is there.
+/// `Err` with one line naming `what` if `need` bytes exceed [`budget`], or if they cannot be
+/// reserved at once: the rule of the library's `ensure_allocatable` (`try_reserve_exact` of the
+/// whole need, freed at once), which under `ulimit -v` proves the address space is there.
 pub fn check(what: &str, need: f64) -> Result<(), UsageError> {
     let budget = budget();
-    let reservable = || {
-        need.is_finite()
-            && ecr_runtime::storage::ensure_bytes_allocatable(what, Some(need as usize)).is_ok()
-    };
-    if need <= budget.bytes && reservable() {
-        return Ok(());
+    if need > budget.bytes || !need.is_finite() {
+        return Err(UsageError(format!(
+            "{what} needs about {} of memory (estimate), more than the {} a run may use \
+             ({:.0}% of {})",
+            gib(need),
+            gib(budget.bytes),
+            FRACTION * 100.0,
+            budget.source
+        )));
     }
-    Err(UsageError(format!(
-        "{what} needs about {} of memory (estimate), more than the {} a run may use \
-         ({:.0}% of {})",
-        gib(need),
-        gib(budget.bytes),
-        FRACTION * 100.0,
-        budget.source
-    )))
+    if ecr_runtime::storage::ensure_bytes_allocatable(what, Some(need as usize)).is_err() {
+        return Err(UsageError(format!(
+            "{what} needs about {} of memory (estimate), which the system does not grant at \
+             once (address space or overcommit limit)",
+            gib(need)
+        )));
+    }
+    Ok(())
 }
 
 #[cfg(test)]
