@@ -905,7 +905,7 @@ fn double_double_non_convergence_suggests_what_it_takes() {
     assert!(out.is_empty());
     assert_eq!(err.lines().count(), 1, "{err}");
     assert!(
-        err.starts_with("error: integration failed: the stage equations did not converge")
+        err.starts_with("error: integration failed: step 1 from t = 0.0 (h = 0.5): the stage equations did not converge")
             && err.contains("--max-sweeps")
             && !err.to_lowercase().contains("newton"),
         "{err}"

@@ -109,16 +109,24 @@ fn integrate<P: GenericSystem<Dd>>(
         bar.set(n as u64);
     });
     bar.finish_and_clear();
-    let report = report.map_err(|e| match e {
+    let report = report.map_err(|e| match e.root() {
         // The library's message suggests the Newton solver, which double-double refuses.
         ecr_runtime::Error::NoConvergence {
             sweeps, residual, ..
-        } => UsageError(format!(
-            "integration failed: the stage equations did not converge to double-double \
-             round-off: residual {residual:e} after {sweeps} sweeps; try a smaller --h or more \
-             --max-sweeps (default {GENERIC_MAX_SWEEPS})"
-        )),
-        e => UsageError(format!("integration failed: {e}")),
+        } => {
+            let at = match &e {
+                ecr_runtime::Error::AtStep { step, t, h, .. } => {
+                    format!("step {step} from t = {t:?} (h = {h:?}): ")
+                }
+                _ => String::new(),
+            };
+            UsageError(format!(
+                "integration failed: {at}the stage equations did not converge to double-double \
+                 round-off: residual {residual:e} after {sweeps} sweeps; try a smaller --h or \
+                 more --max-sweeps (default {GENERIC_MAX_SWEEPS})"
+            ))
+        }
+        _ => UsageError(format!("integration failed: {e}")),
     })?;
     Ok((report, y, start.elapsed().as_secs_f64()))
 }
