@@ -476,6 +476,32 @@ pub(crate) fn expm_dd_split(
 mod dd_tests {
     use super::*;
 
+    /// A matrix with every eigenvalue at −1 whose φ-functions overflow all the same (a Jordan
+    /// block with superdiagonal 1e40: e^A has entries up to 1e40⁹/9!): the error gives the
+    /// 1-norm and the cause, not "eigenvalues far in the right half-plane" (there are none).
+    #[test]
+    fn overflow_without_right_half_plane_eigenvalues_names_the_norm() {
+        let d = 10;
+        let mut a = DMatrix::<f64>::zeros(d, d);
+        for i in 0..d {
+            a[(i, i)] = -1.0;
+            if i + 1 < d {
+                a[(i, i + 1)] = 1e40;
+            }
+        }
+        let msg = phi_dense(&a, 2).unwrap_err().to_string();
+        assert!(!msg.contains("right half-plane"), "{msg}");
+        assert!(
+            msg.contains("overflow f64") && msg.contains("1-norm 1.000e40"),
+            "{msg}"
+        );
+        let msg = expm_dd(&a).unwrap_err().to_string();
+        assert!(
+            !msg.contains("right half-plane") && msg.contains("1-norm 1.000e40"),
+            "{msg}"
+        );
+    }
+
     #[test]
     fn expm_dd_of_a_rotation_generator() {
         // X = [[0, θ], [−θ, 0]]: e^X = [[cos θ, sin θ], [−sin θ, cos θ]]; the double-double
