@@ -29,8 +29,8 @@ pub trait LinearOperator {
     /// # Errors
     /// [`Error::InvalidStepSize`](crate::Error::InvalidStepSize) if `h` is not finite and positive,
     /// [`Error::NonFinite`](crate::Error::NonFinite) if a τ is NaN or infinite,
-    /// [`Error::Numerical`](crate::Error::Numerical) if a φ-function overflows (eigenvalues far in
-    /// the right half-plane).
+    /// [`Error::Numerical`](crate::Error::Numerical) if a φ-function overflows f64 (the error
+    /// gives the numbers of τhA that make it: its norm, or its largest eigenvalue's real part).
     fn phi_bank(&self, h: f64, taus: &[f64], p: usize) -> Result<Self::Bank>;
 
     /// The Legendre kernels of ECrP in the same bank type: slot 0 holds `e^{τ_i hA}` and slot
