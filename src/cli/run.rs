@@ -911,10 +911,10 @@ fn run_tolerance(args: &RunArgs, tol: f64, out: &mut dyn Write) -> Result<(), Us
     } else {
         (None, None)
     };
-    let missing = y.is_none().then(|| {
+    let missing = y.is_none().then_some(
         "the solve returned no output: y, t_end, error_estimate, achieved_error and \
-         energy_error are null"
-    });
+         energy_error are null",
+    );
     let stats = &solution.stats;
     let value: Value = json!({
         "problem": args.problem.name(),
