@@ -851,7 +851,7 @@ mod tests {
                 shared.combine(0..taus.len(), &y0, &g, &coef, &mut a, &mut ());
                 own.combine(0..taus.len(), &y0, &g, &coef, &mut b, &mut ());
                 assert!(a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()));
-                for i in 0..taus.len() {
+                for (i, &tau) in taus.iter().enumerate() {
                     for k in 0..=p {
                         let (mut a, mut b) = (vec![0.0; d], vec![0.0; d]);
                         shared.apply(i, k, &y0, &mut a, &mut ());
@@ -863,7 +863,7 @@ mod tests {
                     let sa = shared.propagate_dd(i, &y0, &mut ah, &mut al, &mut ());
                     let sb = own.propagate_dd(i, &y0, &mut bh, &mut bl, &mut ());
                     assert_eq!(sa, sb);
-                    assert_eq!(sa, kernels && taus[i] == 1.0);
+                    assert_eq!(sa, kernels && tau == 1.0);
                     let same = |x: &[f64], y: &[f64]| {
                         x.iter().zip(y).all(|(u, v)| u.to_bits() == v.to_bits())
                     };
