@@ -332,3 +332,56 @@ fn locked_staging_directory_is_left_alone() {
     assert_eq!(code, 0, "{stderr}");
     assert_eq!(entries(&root.0), ["out"]);
 }
+
+/// A legal `--out` name of 250 bytes is written and replaced: the names beside it (staging,
+/// `-old-`) fit in the 255 bytes a file name may have. (The staging name used to carry the
+/// whole name and failed with "File name too long" before the work.)
+#[test]
+fn out_with_a_250_byte_name_is_written_and_replaced() {
+    let root = TempDir::new("long-out");
+    std::fs::create_dir_all(&root.0).unwrap();
+    let out = root.0.join("o".repeat(250));
+    for _ in 0..2 {
+        let (code, _, err) = quick_into(&out, &[]);
+        assert_eq!(code, 0, "{err}");
+        assert_complete(&out);
+    }
+    assert_eq!(entries(&root.0), ["o".repeat(250)]);
+}
+
+/// A file that cannot be written (here: past `ulimit -f`, with SIGXFSZ ignored, so the write
+/// fails with EFBIG as on a full disk) is one line naming the file and the cause, for the
+/// figures as for the tables: the figures are drawn in memory and written like every other
+/// file. (A figure's failed write used to print the plotting backend's debug dump,
+/// `BackendError(DrawingError(ImageError(…)))`, naming no path.) The previous output stays.
+#[test]
+fn a_figure_that_cannot_be_written_is_one_line_naming_it() {
+    let root = TempDir::new("fsize");
+    let out = root.0.join("out");
+    let (code, _, err) = quick_into(&out, &[]);
+    assert_eq!(code, 0, "{err}");
+    let before = dir_contents(&out).unwrap();
+    // 24 blocks (12 KiB in dash's 512-byte blocks, 24 KiB in bash's): the CSV and the summary
+    // fit, a figure does not.
+    let run = Command::new("sh")
+        .arg("-c")
+        .arg("trap '' XFSZ; ulimit -f 24 && exec \"$0\" \"$@\"")
+        .arg(env!("CARGO_BIN_EXE_ecr"))
+        .args(QUICK)
+        .args(["--out", out.to_str().unwrap()])
+        .output()
+        .unwrap();
+    let (stdout, stderr) = (
+        String::from_utf8(run.stdout).unwrap(),
+        String::from_utf8(run.stderr).unwrap(),
+    );
+    assert_one_line_error(run.status.code().unwrap_or(-1), &stdout, &stderr);
+    assert!(
+        stderr.contains("cannot write '")
+            && stderr.contains("scaling.png'")
+            && stderr.contains("File too large"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("Error("), "{stderr}");
+    assert_eq!(dir_contents(&out).unwrap(), before);
+}

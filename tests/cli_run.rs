@@ -565,11 +565,11 @@ fn nls_memory_is_checked_before_allocating() {
     assert_eq!(code, 0, "{err}");
 }
 
-/// SIGINT (Ctrl-C) on a long run: one line on stderr saying where it got to (t, steps of
-/// total), exit status 130, nothing on stdout. (It used to die silently by the signal.) In a
-/// pipe, as here, no progress bar is drawn: stderr holds only that line.
-#[test]
-fn interrupted_run_reports_where_it_got_to() {
+/// SIGINT (Ctrl-C) or SIGTERM on a long run: one line on stderr saying where it got to (t,
+/// steps of total), exit status 130 resp. 143, nothing on stdout. (It used to die silently by
+/// the signal; SIGTERM did until issue 44.) In a pipe, as here, no progress bar is drawn:
+/// stderr holds only that line.
+fn signalled_run_reports_where_it_got_to(signal: &str, status: i32, what: &str) {
     let args = [
         "run",
         "--problem",
@@ -589,16 +589,16 @@ fn interrupted_run_reports_where_it_got_to() {
         .expect("run ecr");
     std::thread::sleep(std::time::Duration::from_millis(700));
     let sent = std::process::Command::new("kill")
-        .args(["-s", "INT", &child.id().to_string()])
+        .args(["-s", signal, &child.id().to_string()])
         .status()
         .unwrap();
     assert!(sent.success());
     let out = child.wait_with_output().unwrap();
     let err = String::from_utf8(out.stderr).unwrap();
-    assert_eq!(out.status.code(), Some(130), "{err}");
+    assert_eq!(out.status.code(), Some(status), "{signal}: {err}");
     assert!(out.stdout.is_empty());
     assert_eq!(err.lines().count(), 1, "{err}");
-    assert!(err.starts_with("error: interrupted at t = "), "{err}");
+    assert!(err.starts_with(&format!("error: {what} at t = ")), "{err}");
     assert!(err.contains(" of 100000000 steps"), "{err}");
     let steps: u64 = err
         .split(" after ")
@@ -610,6 +610,16 @@ fn interrupted_run_reports_where_it_got_to() {
         .parse()
         .unwrap();
     assert!(steps > 0, "{err}");
+}
+
+#[test]
+fn interrupted_run_reports_where_it_got_to() {
+    signalled_run_reports_where_it_got_to("INT", 130, "interrupted");
+}
+
+#[test]
+fn terminated_run_reports_where_it_got_to() {
+    signalled_run_reports_where_it_got_to("TERM", 143, "terminated (SIGTERM)");
 }
 
 /// `--n 65536` takes the concurrent path (d ≥ 2¹⁵), whose threads each reserved a 64 MiB
@@ -830,4 +840,142 @@ fn double_double_refuses_what_it_does_not_run() {
         assert!(err.starts_with("error: ") && err.contains(want), "{err}");
         assert_eq!(err.lines().count(), 1, "{err}");
     }
+}
+
+/// Double-double runs every r the f64 path runs: r = 26..=32 on Duffing and the wind (r ≥ 27
+/// used to panic, "index out of bounds: the len is 49 but the index is 49", status 101: the
+/// table of 1/n! stopped at 48! while φ_r's Taylor series takes up to 1/(22 + r)!). Each agrees
+/// with the f64 run of the same method to f64 accuracy.
+#[test]
+fn double_double_runs_every_r_up_to_32() {
+    for problem in ["duffing", "wind"] {
+        for r in 26..=32 {
+            let r = r.to_string();
+            let args = [
+                "--problem",
+                problem,
+                "--t-end",
+                "1",
+                "--r",
+                &r,
+                "--h",
+                "0.1",
+            ];
+            let f = run_ok(&args);
+            let mut dd_args = args.to_vec();
+            dd_args.extend(["--precision", "double-double"]);
+            let d = run_ok(&dd_args);
+            assert_eq!(d["steps"], 10, "{problem} r = {r}");
+            for (a, b) in d["y"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .zip(f["y"].as_array().unwrap())
+            {
+                let (a, b) = (a.as_f64().unwrap(), b.as_f64().unwrap());
+                assert!(
+                    (a - b).abs() <= 1e-11 * b.abs().max(1.0),
+                    "{problem} r = {r}: {a} vs {b}"
+                );
+            }
+        }
+    }
+}
+
+/// In double-double, stage equations that do not converge within --max-sweeps suggest what
+/// double-double takes (a smaller --h, more --max-sweeps), not the Newton solver it refuses.
+#[test]
+fn double_double_non_convergence_suggests_what_it_takes() {
+    let (code, out, err) = ecr(&[
+        "run",
+        "--problem",
+        "duffing",
+        "--r",
+        "4",
+        "--h",
+        "0.5",
+        "--t-end",
+        "1",
+        "--precision",
+        "double-double",
+        "--max-sweeps",
+        "1",
+    ]);
+    assert_eq!(code, 2, "{err}");
+    assert!(out.is_empty());
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(
+        err.starts_with("error: integration failed: step 1 from t = 0.0 (h = 0.5): the stage equations did not converge")
+            && err.contains("--max-sweeps")
+            && !err.to_lowercase().contains("newton"),
+        "{err}"
+    );
+}
+
+/// An unverified `--tol` run (exit 2) that kept no output reports no made-up numbers: the
+/// state, its errors and the energy error are null (or real numbers of a state it has), and
+/// `missing` says why. (It printed `"y": []` with error_estimate, achieved_error and
+/// energy_error all 0.0 while its reason said 26.6 times the tolerance.)
+#[test]
+fn unverified_tolerance_run_reports_no_made_up_zeros() {
+    let (code, out, err) = ecr(&[
+        "run",
+        "--problem",
+        "duffing",
+        "--k",
+        "5",
+        "--t-end",
+        "5",
+        "--tol",
+        "1e-4",
+    ]);
+    assert_eq!(code, 2, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["verified"], false);
+    match v["y"].as_array() {
+        None => {
+            assert!(v["y"].is_null(), "{out}");
+            for key in ["error_estimate", "achieved_error", "energy_error", "t_end"] {
+                assert!(v[key].is_null(), "{key} without a state: {out}");
+            }
+            assert!(
+                v["missing"].as_str().unwrap().contains("no output"),
+                "{out}"
+            );
+        }
+        Some(y) => {
+            assert_eq!(y.len(), 2, "{out}");
+            assert!(v["missing"].is_null(), "{out}");
+            // A state it has: the error achieved is measured, not 0.
+            assert!(v["achieved_error"].as_f64().unwrap() > 0.0, "{out}");
+        }
+    }
+}
+
+/// `--tol` on a large NLS grid: the estimate counts the steppers the solve holds at once (the
+/// answer, its two checks and the dense output's, each with its kernel bank for r up to 8), so
+/// a run that cannot get them is refused in one line before the work, under `ulimit -v`. (The
+/// estimate said 1.36 GiB for N = 262144, the real peak was 3.24 GB: under `ulimit -v
+/// 3000000` the run aborted after 13 s, status 134, no report.)
+#[test]
+fn tolerance_run_past_the_address_space_is_refused_before_the_work() {
+    let args = [
+        "run",
+        "--problem",
+        "nls",
+        "--n",
+        "262144",
+        "--t-end",
+        "0.05",
+        "--tol",
+        "1e-4",
+    ];
+    let (code, out, err) = common::ecr_with_address_space(3_000_000, &args);
+    assert_eq!(code, 2, "{err}");
+    assert!(out.is_empty());
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(
+        err.starts_with("error: --problem nls --n 262144 --tol with r up to 8 needs about"),
+        "{err}"
+    );
 }

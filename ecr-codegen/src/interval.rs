@@ -205,6 +205,86 @@ impl Interval {
     }
 }
 
+/// The matrix of `Σ_k (a[i][k] · b[k][j]).rounded(bits)`, each summed from 0 in order: the
+/// value of `fold(point(0), |acc, k| acc.add(&a[i][k].mul(&b[k][j]).rounded(bits)))` for
+/// every i and j. Where every operand is dyadic it is computed on integers scaled by
+/// `2^bits`, each operand converted once, a product with a nonnegative `a[i][k]` from two
+/// endpoint products instead of four, and one conversion to a rational per result; the sums of
+/// rounded products are exact either way, so the results are the same intervals.
+pub fn matmul_rounded(a: &[Vec<Interval>], b: &[Vec<Interval>], bits: u32) -> Vec<Vec<Interval>> {
+    let cols = b.first().map_or(0, Vec::len);
+    let slow = || {
+        a.iter()
+            .map(|row| {
+                (0..cols)
+                    .map(|j| {
+                        row.iter()
+                            .zip(b)
+                            .fold(Interval::point(Rat::zero()), |acc, (x, bk)| {
+                                acc.add(&x.mul(&bk[j]).rounded(bits))
+                            })
+                    })
+                    .collect()
+            })
+            .collect()
+    };
+    let dyadic = |m: &[Vec<Interval>]| -> Option<Vec<Vec<Dyadic2>>> {
+        m.iter()
+            .map(|row| row.iter().map(Dyadic2::of).collect())
+            .collect()
+    };
+    let (Some(da), Some(db)) = (dyadic(a), dyadic(b)) else {
+        return slow();
+    };
+    let bb = u64::from(bits);
+    // An endpoint m / 2^e as an integer over 2^bits: exact if e ≤ bits, else floor or ceil
+    // (`>>` on a BigInt rounds toward −∞; ceil(m/2^k) = −floor(−m/2^k)).
+    let scaled = |m: BigInt, e: u64, up: bool| -> BigInt {
+        if e <= bb {
+            m << (bb - e) as usize
+        } else {
+            let k = (e - bb) as usize;
+            if up { -((-m) >> k) } else { m >> k }
+        }
+    };
+    da.iter()
+        .map(|row| {
+            (0..cols)
+                .map(|j| {
+                    let (mut lo, mut hi) = (BigInt::zero(), BigInt::zero());
+                    for (x, bk) in row.iter().zip(&db) {
+                        let y = &bk[j];
+                        let (pl, ph) = if !x.lo.m.is_negative() {
+                            // x ≥ 0: the smallest product is with y.lo, the largest with y.hi.
+                            let l = if y.lo.m.is_negative() { &x.hi } else { &x.lo };
+                            let h = if y.hi.m.is_negative() { &x.lo } else { &x.hi };
+                            (l.times(&y.lo), h.times(&y.hi))
+                        } else {
+                            let p = [
+                                x.lo.times(&y.lo),
+                                x.lo.times(&y.hi),
+                                x.hi.times(&y.lo),
+                                x.hi.times(&y.hi),
+                            ];
+                            let e = p.iter().map(|d| d.e).max().unwrap_or(0);
+                            let at = |d: &Dyadic| &d.m << (e - d.e) as usize;
+                            let l = p.iter().map(at).min().unwrap_or_default();
+                            let h = p.iter().map(at).max().unwrap_or_default();
+                            (Dyadic { m: l, e }, Dyadic { m: h, e })
+                        };
+                        lo += scaled(pl.m, pl.e, false);
+                        hi += scaled(ph.m, ph.e, true);
+                    }
+                    Interval {
+                        lo: Dyadic { m: lo, e: bb }.to_rat(),
+                        hi: Dyadic { m: hi, e: bb }.to_rat(),
+                    }
+                })
+                .collect()
+        })
+        .collect()
+}
+
 /// A dyadic rational m / 2^e.
 struct Dyadic {
     m: BigInt,

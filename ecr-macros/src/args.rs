@@ -31,13 +31,24 @@ pub struct MethodArgs {
     pub runtime: Option<Path>,
 }
 
-/// The value of an integer literal for `key`, whose supported maximum is `max`. (A literal
-/// token is never negative; `base10_parse` fails only when it does not fit a usize.)
+/// The value of an integer literal for `key`, whose supported maximum is `max`. (syn reads
+/// `-1` as one negative literal, refused here as negative; otherwise `base10_parse` fails only
+/// when the number does not fit a usize.)
 fn parse_usize(lit: &LitInt, key: &str, max: usize) -> syn::Result<usize> {
     if !lit.suffix().is_empty() && lit.suffix() != "usize" {
         return Err(syn::Error::new(
             lit.span(),
             format!("`{key}` takes an unsuffixed integer"),
+        ));
+    }
+    if lit.base10_digits().starts_with('-') {
+        let least = if key == "r" { "1" } else { "r" };
+        return Err(syn::Error::new(
+            lit.span(),
+            format!(
+                "{key} = {} is negative: {key} must be an integer from {least} to {max}",
+                lit.base10_digits()
+            ),
         ));
     }
     lit.base10_parse::<usize>().map_err(|_| {

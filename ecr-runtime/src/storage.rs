@@ -26,6 +26,30 @@ pub fn ensure_allocatable(what: &str, entries: Option<usize>) -> Result<()> {
     )))
 }
 
+/// As [`ensure_allocatable`] for a count of bytes: `Ok` if `bytes` can be allocated at once
+/// (`try_reserve_exact`, freed at once). For the total of several allocations a run makes (for
+/// example [`ec_stepper_bytes`](crate::stepper::ec_stepper_bytes) of each stepper a solve
+/// holds), so that a run that cannot get them is refused before it starts. `None` stands for a
+/// count that overflowed `usize`.
+///
+/// # Errors
+/// [`Error::InvalidInput`] naming `what` and the size.
+pub fn ensure_bytes_allocatable(what: &str, bytes: Option<usize>) -> Result<()> {
+    let granted = bytes.is_some_and(|b| {
+        isize::try_from(b).is_ok() && Vec::<u8>::new().try_reserve_exact(b).is_ok()
+    });
+    if granted {
+        return Ok(());
+    }
+    let size = match bytes {
+        Some(b) => format_bytes(b as f64),
+        None => "more bytes than a usize counts".to_string(),
+    };
+    Err(Error::InvalidInput(format!(
+        "{what} would need {size}: more than can be allocated"
+    )))
+}
+
 /// `bytes` with a binary-prefixed unit and three decimals: "1.500 GiB".
 pub(crate) fn format_bytes(bytes: f64) -> String {
     const UNITS: [&str; 7] = ["B", "KiB", "MiB", "GiB", "TiB", "PiB", "EiB"];

@@ -38,6 +38,13 @@
 
 use nalgebra::DMatrix;
 
+/// The 1-norm (largest column sum of magnitudes).
+fn norm1(a: &DMatrix<f64>) -> f64 {
+    a.column_iter()
+        .map(|c| c.iter().map(|v| v.abs()).sum::<f64>())
+        .fold(0.0, f64::max)
+}
+
 use ecr_runtime::integrate::Integrator;
 use ecr_runtime::operator::LinearOperator;
 use ecr_runtime::phi::phi_dense;
@@ -146,6 +153,8 @@ pub struct Exprb43<S: System, J = fn(&[f64], &mut DMatrix<f64>)> {
     gjac: DMatrix<f64>,
     /// hJ/2, then scratch for the doubling products.
     work: DMatrix<f64>,
+    /// ‖hJ/2‖₁ of the last φ-functions built (for the message of an overflow).
+    work_norm: f64,
     /// φ₁(hJ/2).
     phi1_half: DMatrix<f64>,
     /// φ₁(hJ).
@@ -215,6 +224,7 @@ impl<S: System, J: Fn(&[f64], &mut DMatrix<f64>)> Exprb43<S, J> {
             a,
             gjac: z(),
             work: z(),
+            work_norm: 0.0,
             phi1_half: z(),
             phi1: z(),
             b2: z(),
@@ -285,6 +295,7 @@ impl<S: System, J: Fn(&[f64], &mut DMatrix<f64>)> Exprb43<S, J> {
         {
             *w = half * (a + g);
         }
+        self.work_norm = norm1(&self.work);
         let ph = phi_dense(&self.work, 4)?;
         self.phi1_half.copy_from(&ph[1]);
         // φ₁(2Z) = ½ (φ₀φ₁ + φ₁)
@@ -316,9 +327,12 @@ impl<S: System, J: Fn(&[f64], &mut DMatrix<f64>)> Exprb43<S, J> {
             .iter()
             .any(|m| m.iter().any(|v| !v.is_finite()))
         {
-            return Err(Error::Numerical(
-                "φ-functions of hJ overflow (eigenvalues far in the right half-plane)".into(),
-            ));
+            return Err(Error::Numerical(format!(
+                "φ-functions of hJ overflow f64 (‖hJ‖₁ = {:.3e}: e^(hJ) grows up to \
+                 e^‖hJ‖₁, through eigenvalues with a large positive real part or the transient \
+                 growth of a non-normal J); a smaller h keeps them finite",
+                2.0 * self.work_norm
+            )));
         }
         Ok(())
     }
@@ -547,9 +561,12 @@ impl HochOst4Coefficients {
             &c.b1, &c.b4, &c.b5,
         ];
         if all.iter().any(|m| m.iter().any(|v| !v.is_finite())) {
-            return Err(Error::Numerical(
-                "φ-functions of hA overflow (eigenvalues far in the right half-plane)".into(),
-            ));
+            return Err(Error::Numerical(format!(
+                "φ-functions of hA overflow f64 (‖hA‖₁ = {:.3e}: e^(hA) grows up to \
+                 e^‖hA‖₁, through eigenvalues with a large positive real part or the transient \
+                 growth of a non-normal A); a smaller h keeps them finite",
+                norm1(&(a * h))
+            )));
         }
         Ok(c)
     }

@@ -12,7 +12,7 @@ use std::fs;
 /// Under an address-space limit (`ulimit -v`), keeps glibc's malloc to its main arena.
 ///
 /// glibc gives each thread that allocates its own arena, and reserves 64 MiB of address space
-/// for each (128 MiB while it aligns one): the two threads of rayon's pool and the SIGINT
+/// for each (128 MiB while it aligns one): the two threads of rayon's pool and the signal
 /// thread reserved 192 MiB that no estimate of the memory a run uses counts, and under
 /// `ulimit -v 200000` an NLS run with N = 65536 aborted when a worker's arena won the race for
 /// the address space its own buffers needed. Reservations cost nothing where the address space
@@ -118,20 +118,29 @@ pub fn gib(bytes: f64) -> String {
     }
 }
 
-/// `Err` with one line naming `what` if `need` bytes exceed [`budget`].
+/// `Err` with one line naming `what` if `need` bytes exceed [`budget`], or if they cannot be
+/// reserved at once: the rule of the library's `ensure_allocatable` (`try_reserve_exact` of the
+/// whole need, freed at once), which under `ulimit -v` proves the address space is there.
 pub fn check(what: &str, need: f64) -> Result<(), UsageError> {
     let budget = budget();
-    if need <= budget.bytes {
-        return Ok(());
+    if need > budget.bytes || !need.is_finite() {
+        return Err(UsageError(format!(
+            "{what} needs about {} of memory (estimate), more than the {} a run may use \
+             ({:.0}% of {})",
+            gib(need),
+            gib(budget.bytes),
+            FRACTION * 100.0,
+            budget.source
+        )));
     }
-    Err(UsageError(format!(
-        "{what} needs about {} of memory (estimate), more than the {} a run may use \
-         ({:.0}% of {})",
-        gib(need),
-        gib(budget.bytes),
-        FRACTION * 100.0,
-        budget.source
-    )))
+    if ecr_runtime::storage::ensure_bytes_allocatable(what, Some(need as usize)).is_err() {
+        return Err(UsageError(format!(
+            "{what} needs about {} of memory (estimate), which the system does not grant at \
+             once (address space or overcommit limit)",
+            gib(need)
+        )));
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -67,7 +67,8 @@ pub struct OutputDir {
     /// Where the files go: `--out` with symlinks followed.
     target: PathBuf,
     parent: PathBuf,
-    name: String,
+    /// The target's name as it appears in the names beside it ([`side_tag`]).
+    tag: String,
     /// `<pid>-<k>`: the staging directory's suffix, shared by its `-old-`, `-del-` and
     /// `-kept-` names.
     id: String,
@@ -93,6 +94,32 @@ impl Replaced {
             None => String::new(),
         }
     }
+}
+
+/// The longest file name most filesystems take (`NAME_MAX` on Linux), in bytes.
+const NAME_MAX: usize = 255;
+
+/// The most that the names beside the target add to its name: `.` before it, then
+/// `.ecr-kept-`, a process id (up to 10 digits), `-`, a counter (up to 4) and a probe's `-a`.
+const SIDE_OVERHEAD: usize = 1 + ".ecr-kept-".len() + 10 + 1 + 4 + 2;
+
+/// The target's name as the staging, `-old-`, `-del-` and `-kept-` names beside it carry it:
+/// the name itself where these fit in [`NAME_MAX`] bytes, otherwise its first bytes, `~` and
+/// 16 hex digits of a hash of the whole name (FNV-1a, 64 bits), so that any legal `--out`
+/// name can be staged and the leftovers of one target are still told apart from another's.
+fn side_tag(name: &str) -> String {
+    let room = NAME_MAX - SIDE_OVERHEAD;
+    if name.len() <= room {
+        return name.to_string();
+    }
+    let hash = name.bytes().fold(0xcbf2_9ce4_8422_2325_u64, |h, b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
+    });
+    let mut cut = room - 17;
+    while !name.is_char_boundary(cut) {
+        cut -= 1;
+    }
+    format!("{}~{hash:016x}", &name[..cut])
 }
 
 /// `--out` with its symlinks followed (the last component; at most 40 links; a trailing `/` or
@@ -313,7 +340,7 @@ impl OutputDir {
             shown: out.to_path_buf(),
             target,
             parent,
-            name,
+            tag: side_tag(&name),
             id: String::new(),
             stage: PathBuf::new(),
             _lock: None,
@@ -338,7 +365,7 @@ impl OutputDir {
 
     /// `.<name>.ecr-<kind>-<id>` beside the target.
     fn side(&self, kind: &str, id: &str) -> PathBuf {
-        self.parent.join(format!(".{}.ecr-{kind}-{id}", self.name))
+        self.parent.join(format!(".{}.ecr-{kind}-{id}", self.tag))
     }
 
     /// Cleans up beside the target after killed runs (see the module docs): restores the
@@ -349,7 +376,7 @@ impl OutputDir {
         let Ok(list) = fs::read_dir(&self.parent) else {
             return;
         };
-        let prefix = format!(".{}.ecr-", self.name);
+        let prefix = format!(".{}.ecr-", self.tag);
         let mut olds = Vec::new();
         for entry in list.flatten() {
             let file = entry.file_name();
@@ -554,7 +581,7 @@ impl OutputDir {
         self.done = true;
         let kept = self
             .parent
-            .join(format!("{}.ecr-kept-{}", self.name, self.id));
+            .join(format!("{}.ecr-kept-{}", self.tag, self.id));
         let place = if fs::rename(&self.stage, &kept).is_ok() {
             kept
         } else {
@@ -668,6 +695,42 @@ mod tests {
             assert_eq!(fs::read_to_string(out.join("f")).unwrap(), expect, "{what}");
             drop(staged);
             assert_eq!(names(&root.0), ["out"], "{what}");
+        }
+    }
+
+    /// A legal name of up to `NAME_MAX` bytes (ASCII or not) is staged and committed twice,
+    /// through the exchange and the fallback, every name beside it fitting `NAME_MAX`; a
+    /// killed commit's `-old-` directory is still recovered. (Staging names used to carry the
+    /// whole name: a 250-byte `--out` failed, "File name too long".)
+    #[test]
+    fn names_up_to_name_max_are_staged_and_recovered() {
+        let root = Scratch::new("long");
+        let ascii = "x".repeat(NAME_MAX - 5);
+        let wide = format!("{}é", "y".repeat(NAME_MAX - 2 - 1));
+        for name in [ascii.as_str(), wide.as_str(), &"z".repeat(NAME_MAX)] {
+            assert!(name.len() <= NAME_MAX);
+            let tag = side_tag(name);
+            assert!(tag.len() + SIDE_OVERHEAD <= NAME_MAX, "{}", tag.len());
+            // Two names that differ in their last byte only have different tags.
+            let mut other = name.to_string();
+            other.pop();
+            other.push('!');
+            assert_ne!(side_tag(&other), tag);
+            let out = root.0.join(name);
+            for exchange in [true, false] {
+                let mut staged = OutputDir::stage(&out, false, "test").unwrap();
+                staged.exchange &= exchange;
+                write(staged.path(), &["f"], "new");
+                staged.commit().unwrap();
+                assert_eq!(names(&out), [MARKER, "f"]);
+            }
+            // A commit killed after its first rename: the next run restores the old files.
+            fs::rename(&out, root.0.join(format!(".{tag}.ecr-old-1-0"))).unwrap();
+            let staged = OutputDir::stage(&out, false, "test").unwrap();
+            assert_eq!(names(&out), [MARKER, "f"]);
+            drop(staged);
+            assert_eq!(names(&root.0), [name]);
+            fs::remove_dir_all(&out).unwrap();
         }
     }
 }

@@ -8,6 +8,7 @@ use ecr_runtime::second_order::TcStepper;
 use ecr_runtime::solve::{Options, Problem, Solution, SolveError};
 use ecr_runtime::stepper::{
     EcStepper, PARALLEL_MIN_DIM, Predictor, SizedEcStepper, SolverSettings, StageSolver,
+    StepperBytes, ec_stepper_bytes,
 };
 use ecr_runtime::system::System;
 use serde_json::{Value, json};
@@ -91,7 +92,8 @@ impl MethodArg {
                   print one line starting with 'error: ' on stderr and exit with status 2. \
                   On a terminal, a progress bar shows the steps on stderr. An interrupted run \
                   (Ctrl-C, SIGINT) prints the time t and the steps it reached on stderr and \
-                  exits with status 130."
+                  exits with status 130; one terminated by SIGTERM does the same with status \
+                  143."
 )]
 pub struct RunArgs {
     /// Test problem.
@@ -222,7 +224,7 @@ struct Outcome {
 }
 
 /// Where the current integration has got to, for the report of an interrupted run (read by
-/// the SIGINT handler, written by the integration's observer).
+/// the signal handler, written by the integration's observer).
 struct Progress {
     t_bits: AtomicU64,
     steps: AtomicU64,
@@ -235,36 +237,52 @@ static PROGRESS: Progress = Progress {
     total: AtomicU64::new(0),
 };
 
-/// On SIGINT (Ctrl-C): one line on stderr saying where the run got to, exit status 130 (the
-/// shell's 128 + SIGINT). Installed once per process.
+/// On SIGINT (Ctrl-C) or SIGTERM: one line on stderr saying where the run got to, exit
+/// status 130 or 143 (the shell's 128 + the signal's number). Installed once per process; the
+/// signals are received on a thread of their own (signal-hook's iterator), where printing is
+/// safe.
 fn report_interrupts() {
+    use signal_hook::consts::{SIGINT, SIGTERM};
     static ONCE: Once = Once::new();
     ONCE.call_once(|| {
-        // If another handler is already installed, SIGINT keeps its behaviour.
-        let _ = ctrlc::set_handler(|| {
-            let t = f64::from_bits(PROGRESS.t_bits.load(Ordering::Relaxed));
-            let steps = PROGRESS.steps.load(Ordering::Relaxed);
-            let total = PROGRESS.total.load(Ordering::Relaxed);
-            let newline = if std::io::stderr().is_terminal() {
-                "\n"
-            } else {
-                ""
-            };
-            // A full or closed stderr loses the line, not the status.
-            let _ = if total == u64::MAX {
-                writeln!(
-                    std::io::stderr(),
-                    "{newline}error: interrupted during the solve; no report written"
-                )
-            } else {
-                writeln!(
-                    std::io::stderr(),
-                    "{newline}error: interrupted at t = {t} after {steps} of {total} steps; \
-                     no report written"
-                )
-            };
-            std::process::exit(130);
-        });
+        // If the handlers cannot be installed, the signals keep their default behaviour.
+        let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM]) else {
+            return;
+        };
+        let _ = std::thread::Builder::new()
+            .name("ecr-signals".into())
+            .spawn(move || {
+                let Some(signal) = signals.forever().next() else {
+                    return;
+                };
+                let (what, status) = if signal == SIGTERM {
+                    ("terminated (SIGTERM)", 128 + SIGTERM)
+                } else {
+                    ("interrupted", 128 + SIGINT)
+                };
+                let t = f64::from_bits(PROGRESS.t_bits.load(Ordering::Relaxed));
+                let steps = PROGRESS.steps.load(Ordering::Relaxed);
+                let total = PROGRESS.total.load(Ordering::Relaxed);
+                let newline = if std::io::stderr().is_terminal() {
+                    "\n"
+                } else {
+                    ""
+                };
+                // A full or closed stderr loses the line, not the status.
+                let _ = if total == u64::MAX {
+                    writeln!(
+                        std::io::stderr(),
+                        "{newline}error: {what} during the solve; no report written"
+                    )
+                } else {
+                    writeln!(
+                        std::io::stderr(),
+                        "{newline}error: {what} at t = {t} after {steps} of {total} steps; \
+                         no report written"
+                    )
+                };
+                std::process::exit(status);
+            });
     });
 }
 
@@ -436,7 +454,7 @@ fn solver_settings(args: &RunArgs) -> SolverSettings {
 /// workspaces of the concurrent stage path: at most max(s, r + 1), each the spectra of r + 1
 /// inputs, a buffer and the FFT scratch (r + 3 complex numbers per mode). r and s are clamped
 /// to the tables' range: larger ones are refused later with their own message. The stacks of
-/// the threads, 2 MiB each (the standard library's default): the SIGINT handler's and, from
+/// the threads, 2 MiB each (the standard library's default): the signal thread's and, from
 /// d = `PARALLEL_MIN_DIM` on, rayon's pool ([`pool_threads`]). Their malloc arenas are not
 /// counted: under `ulimit -v` the threads share one ([`memory::limit_malloc_arenas`]).
 fn memory_estimate(args: &RunArgs) -> f64 {
@@ -471,6 +489,63 @@ fn memory_estimate(args: &RunArgs) -> f64 {
         0.0
     };
     BASE + (1.0 + pool) * STACK + d * per_component + newton
+}
+
+/// The largest r that `ecr run --tol` lets the solve choose without --r (`Options`' default
+/// orders, r = 1..=8).
+const SOLVE_MAX_R: usize = 8;
+
+/// A bound on the bytes `ecr run --tol` needs: the peak of the steppers the solve holds at
+/// once ([`StepperBytes::peak_of`]), each as [`ec_stepper_bytes`] counts it for the largest r
+/// the solve may choose (s = r): the answer, its two checks (2h, 3h) and the dense output's
+/// (constant predictor); the stacks of the
+/// threads, a base of 32 MiB, and 200 bytes per component for the system itself (its
+/// spectrum, FFT plans and scratch), the initial value, the solution and the JSON report
+/// (measured, as the peak resident memory of NLS solves, docs/solve.md#memory). The solves to
+/// the tolerance and to tolerance/1000 (the reference) run one after the other.
+fn solve_memory_estimate(args: &RunArgs) -> Result<f64, UsageError> {
+    fn of<S: System>(system: S, r: usize) -> f64 {
+        let settings = SolverSettings::default();
+        let dense = SolverSettings {
+            predictor: Predictor::Constant,
+            ..settings
+        };
+        let bytes = |s: &SolverSettings| ec_stepper_bytes(&system, r, r, s);
+        let steppers = [
+            bytes(&settings),
+            bytes(&settings),
+            bytes(&settings),
+            bytes(&dense),
+        ];
+        let peak = steppers
+            .into_iter()
+            .collect::<Option<Vec<_>>>()
+            .and_then(|s| StepperBytes::peak_of(&s));
+        peak.map_or(f64::INFINITY, |b| b as f64) + 200.0 * system.dim() as f64
+    }
+    let r = args.r.unwrap_or(SOLVE_MAX_R).min(ecr_codegen::MAX_R);
+    let steppers = match args.problem {
+        ProblemArg::Duffing => {
+            let problem =
+                Duffing::new(args.omega.unwrap_or(5.0), args.k.unwrap_or(0.07)).map_err(usage)?;
+            of(problem.system().map_err(usage)?, r)
+        }
+        ProblemArg::Wind | ProblemArg::WindDissipative => {
+            of(wind_problem(args)?.system().map_err(usage)?, r)
+        }
+        ProblemArg::HenonHeiles => of(HenonHeiles::default().system().map_err(usage)?, r),
+        ProblemArg::Nls => {
+            let problem = Nls::new(args.n.unwrap_or(128)).map_err(usage)?;
+            of(problem.system().map_err(usage)?, r)
+        }
+        ProblemArg::Fpu => {
+            let problem = Fpu::new(3, args.omega.unwrap_or(50.0)).map_err(usage)?;
+            of(problem.first_order_system().map_err(usage)?, r)
+        }
+    };
+    const BASE: f64 = 32.0 * 1024.0 * 1024.0;
+    const STACK: f64 = 2.0 * 1024.0 * 1024.0;
+    Ok(BASE + (1.0 + pool_threads() as f64) * STACK + steppers)
 }
 
 /// The threads of rayon's pool: `RAYON_NUM_THREADS` if set (and > 0), else one per CPU (what
@@ -524,6 +599,14 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), UsageError> {
         if args.newton { " and --newton" } else { "" }
     );
     memory::check(&what, memory_estimate(args))?;
+    if args.tol.is_some() && args.precision == PrecisionArg::Double {
+        let what = format!(
+            "{} --tol with r up to {}",
+            what.split(" with r").next().unwrap_or(&what),
+            args.r.unwrap_or(SOLVE_MAX_R)
+        );
+        memory::check(&what, solve_memory_estimate(args)?)?;
+    }
     report_interrupts();
     if args.precision == PrecisionArg::DoubleDouble {
         return precise::run(args, out);
@@ -831,9 +914,23 @@ fn run_tolerance(args: &RunArgs, tol: f64, out: &mut dyn Write) -> Result<(), Us
         unverified,
         seconds,
     } = solved;
-    let y = solution.last().map(<[f64]>::to_vec).unwrap_or_default();
+    // A solve that kept no output (an unverified one may not) has no state, no error and no
+    // energy error to report: those are null, and `missing` says why (not made-up zeros).
+    let y = solution.last().map(<[f64]>::to_vec);
     let (reference_y, reference_what, reference_estimate) = reference;
-    let achieved = reference_y.as_ref().map(|r| in_tolerance_units(&y, r, tol));
+    let achieved = y
+        .as_ref()
+        .zip(reference_y.as_ref())
+        .map(|(y, r)| in_tolerance_units(y, r, tol));
+    let (error_estimate, energy_error) = if y.is_some() {
+        (solution.error_estimate, solution.energy_error())
+    } else {
+        (None, None)
+    };
+    let missing = y.is_none().then_some(
+        "the solve returned no output: y, t_end, error_estimate, achieved_error and \
+         energy_error are null",
+    );
     let stats = &solution.stats;
     let value: Value = json!({
         "problem": args.problem.name(),
@@ -842,7 +939,8 @@ fn run_tolerance(args: &RunArgs, tol: f64, out: &mut dyn Write) -> Result<(), Us
         "tolerance": tol,
         "verified": unverified.is_none(),
         "reason": unverified,
-        "error_estimate": solution.error_estimate,
+        "missing": missing,
+        "error_estimate": error_estimate,
         "achieved_error": achieved,
         "reference": reference_what,
         "reference_estimate": reference_estimate.map(|e| e * 1e-3),
@@ -854,7 +952,7 @@ fn run_tolerance(args: &RunArgs, tol: f64, out: &mut dyn Write) -> Result<(), Us
         "t_end": solution.t.last(),
         "status": format!("{:?}", solution.status),
         "y": y,
-        "energy_error": solution.energy_error(),
+        "energy_error": energy_error,
         "energy_error_units": "relative: max over the output times of |H - H0| / |H0|",
         "steps": stats.steps,
         "g_evals": stats.g_evals,

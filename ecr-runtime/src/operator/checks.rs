@@ -31,16 +31,36 @@ pub(crate) fn check_bank_scale(h: f64, taus: &[f64], amax: f64) -> Result<()> {
     Ok(())
 }
 
-/// `Err(Numerical)` if a bank entry overflowed.
-pub(crate) fn check_bank_values(values: impl IntoIterator<Item = f64>) -> Result<()> {
+/// `Err(Numerical)` if a bank entry overflowed, saying why in `cause` (the numbers of τhA
+/// that make it overflow).
+pub(crate) fn check_bank_values(
+    values: impl IntoIterator<Item = f64>,
+    cause: impl FnOnce() -> String,
+) -> Result<()> {
     if values.into_iter().all(f64::is_finite) {
         Ok(())
     } else {
-        Err(Error::Numerical(
-            "phi-function overflow in the bank (eigenvalues of hA far in the right half-plane)"
-                .into(),
-        ))
+        Err(Error::Numerical(format!(
+            "phi-function overflow in the bank (an entry beyond {:.1e}): {}; a smaller step \
+             size h keeps it finite",
+            f64::MAX,
+            cause()
+        )))
     }
+}
+
+/// The cause of an overflow for real eigenvalues (or diagonal entries) `values` of A at the
+/// nodes `taus` and step `h`: the largest `τ h λ`, against `ln f64::MAX`.
+pub(crate) fn real_overflow_cause(values: &[f64], h: f64, taus: &[f64]) -> String {
+    let top = taus
+        .iter()
+        .flat_map(|t| values.iter().map(move |l| t * h * l))
+        .fold(f64::NEG_INFINITY, f64::max);
+    format!(
+        "the largest τ·h·λ over the eigenvalues λ of A is {top:.3e}, and e^x passes f64::MAX \
+         at x = {:.2}",
+        f64::MAX.ln()
+    )
 }
 
 /// Validates the shapes of a [`PhiBank::combine`](super::PhiBank::combine) call and returns

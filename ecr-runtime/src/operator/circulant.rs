@@ -56,6 +56,10 @@ impl SpectralBasis for FourierBasis {
         self.n
     }
 
+    fn scratch_bytes(&self) -> usize {
+        16 * self.scratch_len()
+    }
+
     fn scratch(&self) -> Vec<Complex64> {
         vec![Complex64::new(0.0, 0.0); self.scratch_len()]
     }
@@ -167,6 +171,10 @@ impl LinearOperator for Circulant {
 
     fn dim(&self) -> usize {
         self.c.len()
+    }
+
+    fn bank_bytes(&self, len: usize, n: usize) -> Option<(usize, usize)> {
+        super::spectral::spectral_bank_bytes(&self.basis, len, n)
     }
 
     /// `y = c ⊛ x` by FFT (O(n log n)); uses internal buffers behind a mutex, so concurrent

@@ -106,6 +106,15 @@ impl SpectralBasis for Fourier2dBasis {
         self.nx * self.ny
     }
 
+    fn scratch_bytes(&self) -> usize {
+        let fft_len = [&self.row_fwd, &self.row_inv, &self.col_fwd, &self.col_inv]
+            .iter()
+            .map(|f| f.get_inplace_scratch_len())
+            .max()
+            .unwrap_or(0);
+        16 * (COLUMN_BATCH.min(self.ny) * self.nx + fft_len)
+    }
+
     fn scratch(&self) -> Fourier2dScratch {
         let fft_len = [&self.row_fwd, &self.row_inv, &self.col_fwd, &self.col_inv]
             .iter()
@@ -279,6 +288,10 @@ impl LinearOperator for Circulant2d {
 
     fn dim(&self) -> usize {
         self.nx * self.ny
+    }
+
+    fn bank_bytes(&self, len: usize, n: usize) -> Option<(usize, usize)> {
+        super::spectral::spectral_bank_bytes(&self.basis, len, n)
     }
 
     /// `y = c ⊛ x` by 2D FFT (O(d log d)); uses internal buffers behind a mutex, so

@@ -6,7 +6,9 @@ use std::sync::Arc;
 use nalgebra::{DMatrix, SMatrix, SVector};
 use num_complex::Complex64;
 
-use super::checks::{apply_shape, check_bank_scale, check_bank_values, combine_shape};
+use super::checks::{
+    apply_shape, check_bank_scale, check_bank_values, combine_shape, real_overflow_cause,
+};
 use super::entries::{DD_PROPAGATOR_MAX_DIM, NodeFunctions};
 use super::matvec::{gemv, gemv_tr, matvec_dd};
 use super::simple::diagonal_block;
@@ -524,7 +526,9 @@ impl Symmetric {
                 }
             }
         }
-        check_bank_values(phis.iter().copied())?;
+        check_bank_values(phis.iter().copied(), || {
+            real_overflow_cause(self.lambda.as_slice(), h, taus)
+        })?;
         let props = taus
             .iter()
             .enumerate()

@@ -145,6 +145,53 @@ impl<T: Copy> Distinct<T> {
         Distinct { values, index }
     }
 
+    /// The number of distinct values.
+    pub(crate) fn len(&self) -> usize {
+        self.values.len()
+    }
+
+    /// The distinct values.
+    pub(crate) fn values(&self) -> &[T] {
+        &self.values
+    }
+
+    /// `index[mode]`: the position of the mode's value among the distinct values.
+    pub(crate) fn index(&self) -> &[usize] {
+        &self.index
+    }
+
+    /// As [`bank_entries`](Self::bank_entries), but one column per distinct value instead of
+    /// one per mode: `entries[(i (p+1) + k) nu + u]` for the nu distinct values, and per node
+    /// the carried numbers per distinct value. The caller maps a mode to its column with
+    /// [`index`](Self::index).
+    #[allow(clippy::type_complexity)]
+    pub(crate) fn distinct_entries<F: Copy, E: Copy>(
+        &self,
+        len: usize,
+        p: usize,
+        zero: F,
+        carries: impl Fn(usize) -> bool,
+        mut eval: impl FnMut(usize, T, &mut [F]) -> E,
+    ) -> (Vec<F>, Vec<Option<Vec<E>>>) {
+        let nu = self.values.len();
+        let mut entries = vec![zero; len * (p + 1) * nu];
+        let mut carried = Vec::with_capacity(len);
+        let mut extra = Vec::with_capacity(nu);
+        let mut row = vec![zero; p + 1];
+        for i in 0..len {
+            extra.clear();
+            let block = &mut entries[i * (p + 1) * nu..(i + 1) * (p + 1) * nu];
+            for (u, v) in self.values.iter().enumerate() {
+                extra.push(eval(i, *v, &mut row));
+                for (k, r) in row.iter().enumerate() {
+                    block[k * nu + u] = *r;
+                }
+            }
+            carried.push(carries(i).then(|| extra.clone()));
+        }
+        (entries, carried)
+    }
+
     /// The entries of a bank with `len` nodes and the slots `0..=p`, evaluated once per node and
     /// distinct value: `eval(i, v, row)` fills `row` (the p + 1 slots at node i and value v) and
     /// returns a number carried at the nodes where `carries(i)` (the propagator's low part or

@@ -250,6 +250,28 @@ impl LinearOperator for Oscillator {
         2 * self.omega.dim()
     }
 
+    /// Four numbers per mode, slot and node; for a dense Ω (or one with a dense damping) the
+    /// double-double propagator of the full 2n × 2n matrix and its scaling and squaring's few
+    /// working matrices (16 n² numbers at most), otherwise 16 numbers per mode; a workspace of
+    /// `(n + 2)·2m` numbers when Ω has a dense basis.
+    fn bank_bytes(&self, len: usize, n: usize) -> Option<(usize, usize)> {
+        let m = self.omega.dim();
+        let dense = self.omega.basis().is_some() || self.damping_matrix.is_some();
+        let vals = len.checked_mul(n.checked_add(1)?)?.checked_mul(4 * m)?;
+        let dd = if dense {
+            m.checked_mul(m)?.checked_mul(16)?
+        } else {
+            m.checked_mul(16)?
+        };
+        let bank = vals.checked_add(dd)?.checked_mul(8)?;
+        let workspace = if self.omega.basis().is_some() {
+            n.checked_add(2)?.checked_mul(2 * m)?.checked_mul(8)?
+        } else {
+            0
+        };
+        Some((bank, workspace))
+    }
+
     /// `(q, p) ↦ (p, −Ωq)`.
     fn apply(&self, x: &[f64], y: &mut [f64]) {
         let n = self.omega.dim();
@@ -318,7 +340,21 @@ impl Oscillator {
                 }
             }
         }
-        check_bank_values(vals.iter().copied())?;
+        check_bank_values(vals.iter().copied(), || {
+            let top = lambda.iter().fold(f64::INFINITY, |m, &l| m.min(l));
+            let nu = self
+                .damping
+                .iter()
+                .flatten()
+                .fold(f64::NEG_INFINITY, |m, &v| m.max(v));
+            let tmax = taus.iter().fold(0.0_f64, |m, t| m.max(t.abs()));
+            format!(
+                "the blocks [[0, 1], [-λ, ν]] grow like e^(τ·h·√(-λ)) for a negative \
+                 eigenvalue λ of Ω and like e^(τ·h·ν) for a damping ν > 0: here the smallest λ \
+                 is {top:.3e}, the largest ν {nu:.3e}, and τ·h up to {:.3e}",
+                tmax * h
+            )
+        })?;
         let dd = match (0..taus.len()).find(|&i| f.carries_dd(i)) {
             Some(node) => self.dd_propagator(h, node)?,
             None => None,

@@ -77,6 +77,10 @@ impl<C: SkewGenerator> LinearOperator for SkewPair<C> {
         2 * self.lambda.len()
     }
 
+    fn bank_bytes(&self, len: usize, n: usize) -> Option<(usize, usize)> {
+        super::spectral::spectral_bank_bytes(&self.basis, len, n)
+    }
+
     /// `(p, q) ↦ (−C q, C p)`.
     fn apply(&self, x: &[f64], y: &mut [f64]) {
         let n = self.lambda.len();

@@ -9,7 +9,7 @@ use num_complex::Complex64;
 
 use super::checks::{apply_shape, check_bank_args, check_bank_values, combine_shape};
 use super::entries::{Distinct, NodeFunctions};
-use super::traits::{LinearOperator, PhiBank};
+use super::traits::{LinearOperator, PhiBank, byte_sum};
 use crate::concurrent::two_phase_combine;
 use crate::error::Result;
 use crate::phi::{Dd, cexp_dd, two_sum};
@@ -30,6 +30,12 @@ pub trait SpectralBasis: Clone + Sync {
 
     /// Fresh scratch memory.
     fn scratch(&self) -> Self::Scratch;
+
+    /// The bytes of [`scratch`](Self::scratch) (for memory estimates). The default counts a
+    /// complex number per point.
+    fn scratch_bytes(&self) -> usize {
+        16 * self.dim()
+    }
 
     /// `u ← V⁻¹ u` (coefficients in the eigenbasis). Does not allocate.
     fn forward(&self, u: &mut [Complex64], s: &mut Self::Scratch);
@@ -147,6 +153,28 @@ impl<B: SpectralBasis> SpectralBank<B> {
     }
 }
 
+/// [`LinearOperator::bank_bytes`] of a spectral bank on `basis` ([`SpectralBank`],
+/// [`SkewPairBank`](super::SkewPairBank)): a complex number per mode, slot and node, the
+/// increments of one carried node; a workspace of `n + 2` complex numbers per mode and the
+/// transform's scratch.
+pub(super) fn spectral_bank_bytes<B: SpectralBasis>(
+    basis: &B,
+    len: usize,
+    n: usize,
+) -> Option<(usize, usize)> {
+    let modes = basis.dim();
+    let slots = n.checked_add(1)?;
+    let bank = byte_sum(&[
+        (len.checked_mul(slots)?.checked_mul(modes)?, 16),
+        (modes, 16),
+    ])?;
+    let workspace = byte_sum(&[
+        (slots.checked_add(1)?.checked_mul(modes)?, 16),
+        (basis.scratch_bytes(), 1),
+    ])?;
+    Some((bank, workspace))
+}
+
 /// The entries of a spectral bank ([`SpectralBank`], [`SkewPairBank`](super::SkewPairBank)):
 /// `phis[(i (p+1) + k) n + mode]` = slot k of the functions `f` at node i and `z = arg(τ_i h,
 /// μ_mode)` for the spectrum μ, and at the nodes that carry their propagator beyond f64 the
@@ -177,13 +205,28 @@ pub(super) fn spectral_entries<T: Copy>(
             zero
         }
     });
-    check_bank_values(phis.iter().flat_map(|v| [v.re, v.im]))?;
+    // The cause of an overflow: the largest real part of z = τ h μ.
+    let cause = || {
+        let mut top = f64::NEG_INFINITY;
+        for t in taus {
+            for &v in spectrum.values() {
+                top = top.max(arg(t * h, v).re);
+            }
+        }
+        format!(
+            "the largest real part of τ·h·λ over the eigenvalues λ of A is {top:.3e}, and \
+             |e^z| passes f64::MAX at Re z = {:.2}",
+            f64::MAX.ln()
+        )
+    };
+    check_bank_values(phis.iter().flat_map(|v| [v.re, v.im]), cause)?;
     check_bank_values(
         increments
             .iter()
             .flatten()
             .flatten()
             .flat_map(|v| [v.re, v.im]),
+        cause,
     )?;
     Ok((phis, increments))
 }

@@ -29,8 +29,8 @@ pub trait LinearOperator {
     /// # Errors
     /// [`Error::InvalidStepSize`](crate::Error::InvalidStepSize) if `h` is not finite and positive,
     /// [`Error::NonFinite`](crate::Error::NonFinite) if a τ is NaN or infinite,
-    /// [`Error::Numerical`](crate::Error::Numerical) if a φ-function overflows (eigenvalues far in
-    /// the right half-plane).
+    /// [`Error::Numerical`](crate::Error::Numerical) if a φ-function overflows f64 (the error
+    /// gives the numbers of τhA that make it: its norm, or its largest eigenvalue's real part).
     fn phi_bank(&self, h: f64, taus: &[f64], p: usize) -> Result<Self::Bank>;
 
     /// The Legendre kernels of ECrP in the same bank type: slot 0 holds `e^{τ_i hA}` and slot
@@ -43,6 +43,32 @@ pub trait LinearOperator {
     /// # Errors
     /// As [`phi_bank`](Self::phi_bank).
     fn kernel_bank(&self, h: f64, taus: &[f64], n: usize) -> Result<Self::Bank>;
+
+    /// The bytes of a [`kernel_bank`](Self::kernel_bank) of `len` nodes and `n` kernels
+    /// (slots `0..=n`) and of one of its workspaces ([`PhiBank::workspace`]), as this operator
+    /// allocates them: `(bank, workspace)`, or `None` if the count overflows a `usize`. For
+    /// checking the memory of a run before it starts (see
+    /// [`ec_stepper_bytes`](crate::stepper::ec_stepper_bytes)); a φ-bank takes at most as much.
+    ///
+    /// The default, for operators that do not say, counts a dense bank: `(len (n + 2) + 8) d²`
+    /// numbers and a workspace of `(n + 3) d`.
+    fn bank_bytes(&self, len: usize, n: usize) -> Option<(usize, usize)> {
+        let d = self.dim();
+        let bank = len
+            .checked_mul(n.checked_add(2)?)?
+            .checked_add(8)?
+            .checked_mul(d.checked_mul(d)?)?
+            .checked_mul(8)?;
+        let workspace = n.checked_add(3)?.checked_mul(d)?.checked_mul(8)?;
+        Some((bank, workspace))
+    }
+}
+
+/// `Σ count·size` over `(count, size)` in bytes, `None` on overflow.
+pub(crate) fn byte_sum(parts: &[(usize, usize)]) -> Option<usize> {
+    parts.iter().try_fold(0usize, |acc, &(count, size)| {
+        acc.checked_add(count.checked_mul(size)?)
+    })
 }
 
 /// The operators `φ_k(τ_i h A)`, `i < len()`, `k ≤ p()`, for one step size `h`.

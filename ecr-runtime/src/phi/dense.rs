@@ -85,15 +85,30 @@ pub(crate) fn check_symmetric(a: &DMatrix<f64>, what: &str) -> Result<()> {
     Ok(())
 }
 
-fn check_finite_result(phis: &[DMatrix<f64>]) -> Result<()> {
+/// `Err(Numerical)` if an entry of the φ-functions overflowed, saying why in `cause`.
+fn check_finite_result(phis: &[DMatrix<f64>], cause: impl FnOnce() -> String) -> Result<()> {
     if phis.iter().all(|m| m.iter().all(|v| v.is_finite())) {
         Ok(())
     } else {
-        Err(Error::Numerical(
-            "phi-functions overflow f64 (the matrix has eigenvalues far in the right half-plane)"
-                .into(),
-        ))
+        Err(Error::Numerical(format!(
+            "the phi-functions overflow f64 (an entry beyond {:.1e}): {}; a smaller step \
+             size h keeps them finite",
+            f64::MAX,
+            cause()
+        )))
     }
+}
+
+/// Why the φ-functions of the general matrix `X` (1-norm `norm`) can overflow: `‖e^X‖ ≤
+/// e^{‖X‖}`, reached through eigenvalues with a large positive real part or through the
+/// transient growth of a non-normal matrix.
+pub(crate) fn overflow_cause(norm: f64) -> String {
+    format!(
+        "the matrix has 1-norm {norm:.3e}, and e^X can grow up to e^{{1-norm}} (e^x passes \
+         f64::MAX at x = {:.2}) through eigenvalues with a large positive real part or the \
+         transient growth of a non-normal matrix",
+        f64::MAX.ln()
+    )
 }
 
 /// φ₀(A), …, φ_p(A) for a general (possibly non-normal) square matrix.
@@ -120,7 +135,8 @@ fn check_finite_result(phis: &[DMatrix<f64>]) -> Result<()> {
 ///
 /// # Errors
 /// [`Error::NotSquare`], [`Error::NonFinite`] for NaN/∞ entries, [`Error::Numerical`] if the
-/// result overflows (eigenvalues far in the right half-plane) or `‖A‖₁ > 1e300`.
+/// result overflows (e^A grows up to e^{‖A‖}: eigenvalues with a large positive real part, or
+/// the transient growth of a non-normal matrix) or `‖A‖₁ > 1e300`.
 pub fn phi_dense(a: &DMatrix<f64>, p: usize) -> Result<Vec<DMatrix<f64>>> {
     validate(a, "matrix")?;
     let d = a.nrows();
@@ -134,7 +150,8 @@ pub fn phi_dense(a: &DMatrix<f64>, p: usize) -> Result<Vec<DMatrix<f64>>> {
             .iter()
             .map(|&v| DMatrix::from_element(1, 1, v))
             .collect();
-        check_finite_result(&phis)?;
+        let x = a[(0, 0)];
+        check_finite_result(&phis, || format!("the 1 × 1 matrix is x = {x:e}"))?;
         return Ok(phis);
     }
     let norm = norm1(a);
@@ -222,7 +239,7 @@ pub fn phi_dense(a: &DMatrix<f64>, p: usize) -> Result<Vec<DMatrix<f64>>> {
         }
         e
     };
-    check_finite_result(&phis)?;
+    check_finite_result(&phis, || overflow_cause(norm))?;
     Ok(phis)
 }
 
@@ -315,7 +332,10 @@ pub fn phi_symmetric(a: &DMatrix<f64>, p: usize) -> Result<Vec<DMatrix<f64>>> {
         out.gemm(1.0, &qd, &qt, 0.0);
         phis.push(out);
     }
-    check_finite_result(&phis)?;
+    check_finite_result(&phis, || {
+        let top = lambda.iter().fold(f64::NEG_INFINITY, |m, &l| m.max(l));
+        format!("the symmetric matrix's largest eigenvalue is {top:.3e}")
+    })?;
     Ok(phis)
 }
 
@@ -444,9 +464,10 @@ pub(crate) fn expm_dd_split(
     }
     let (th, tl) = (DMatrix::from_vec(n, n, th), DMatrix::from_vec(n, n, tl));
     if th.iter().chain(tl.iter()).any(|v| !v.is_finite()) {
-        return Err(Error::Numerical(
-            "the exponential overflows f64 (eigenvalues far in the right half-plane)".into(),
-        ));
+        return Err(Error::Numerical(format!(
+            "the exponential overflows f64: {}; a smaller step size h keeps it finite",
+            overflow_cause(norm)
+        )));
     }
     Ok((th, tl))
 }
@@ -454,6 +475,32 @@ pub(crate) fn expm_dd_split(
 #[cfg(test)]
 mod dd_tests {
     use super::*;
+
+    /// A matrix with every eigenvalue at −1 whose φ-functions overflow all the same (a Jordan
+    /// block with superdiagonal 1e40: e^A has entries up to 1e40⁹/9!): the error gives the
+    /// 1-norm and the cause, not "eigenvalues far in the right half-plane" (there are none).
+    #[test]
+    fn overflow_without_right_half_plane_eigenvalues_names_the_norm() {
+        let d = 10;
+        let mut a = DMatrix::<f64>::zeros(d, d);
+        for i in 0..d {
+            a[(i, i)] = -1.0;
+            if i + 1 < d {
+                a[(i, i + 1)] = 1e40;
+            }
+        }
+        let msg = phi_dense(&a, 2).unwrap_err().to_string();
+        assert!(!msg.contains("right half-plane"), "{msg}");
+        assert!(
+            msg.contains("overflow f64") && msg.contains("1-norm 1.000e40"),
+            "{msg}"
+        );
+        let msg = expm_dd(&a).unwrap_err().to_string();
+        assert!(
+            !msg.contains("right half-plane") && msg.contains("1-norm 1.000e40"),
+            "{msg}"
+        );
+    }
 
     #[test]
     fn expm_dd_of_a_rotation_generator() {

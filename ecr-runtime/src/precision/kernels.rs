@@ -13,7 +13,7 @@
 use super::{GenericTables, LinearPart, Real};
 
 /// Taylor terms of the scaled φ-functions.
-const TAYLOR_TERMS: usize = 22;
+pub(crate) const TAYLOR_TERMS: usize = 22;
 
 /// A linear map in the structure of the linear part it comes from.
 #[derive(Clone, Debug)]

@@ -7,8 +7,9 @@ use ecr_codegen::table::check_rs;
 use ecr_codegen::{Certified, Family, Interval, MethodTable, Rat};
 use num_bigint::BigInt;
 
-/// The largest `n` with `1/n!` in [`GenericTables::inv_factorial`].
-pub(crate) const MAX_FACTORIAL: usize = 48;
+/// The largest `n` with `1/n!` in [`GenericTables::inv_factorial`]: what the Taylor series of
+/// `φ_r` takes for the largest r the generator supports (`1/(M + r)!`, `M` Taylor terms).
+pub(crate) const MAX_FACTORIAL: usize = super::kernels::TAYLOR_TERMS + ecr_codegen::MAX_R;
 
 /// The coefficients of ECrP with r moments and s Gauss–Legendre points, each the correctly
 /// rounded double-double of its exact value read in `S` ([`Real::from_dd`]): for `f64` the
@@ -28,7 +29,7 @@ pub struct GenericTables<S> {
     /// The integers c_{jk} of the kernels Ψⱼ(τ, Z) = Σ_{k≤j} c_{jk} τᵏ φ_{k+1}(τZ), row-major
     /// r × r (zero above the diagonal).
     pub c: Vec<S>,
-    /// 1/n! for n = 0..=48.
+    /// 1/n! for n = 0..=54 (`MAX_FACTORIAL`).
     pub inv_factorial: Vec<S>,
 }
 

@@ -68,6 +68,7 @@ mod fused;
 mod gemv;
 mod iteration;
 mod kernel;
+mod memory;
 mod newton;
 mod parallel;
 mod predictor;
@@ -81,6 +82,7 @@ pub(crate) use cache::BankCache;
 pub use fused::{FUSED_MAX_ENTRIES, FusedMaps, fuses_stages, stage_matrices};
 pub use gemv::gemv_cm;
 pub use kernel::{FixedKernel, Kernel, RuntimeKernel};
+pub use memory::{StepperBytes, ec_stepper_bytes};
 pub use newton::NEWTON_REFRESH_THETA;
 pub use settings::{
     PARALLEL_MIN_DIM, Predictor, SolverSettings, StageScale, StageSolver, StepReport, SweepLimit,

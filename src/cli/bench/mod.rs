@@ -15,7 +15,7 @@ mod sweep;
 
 use super::UsageError;
 use super::output::OutputDir;
-use super::reproduce::plots::{Curve, Figure, Panel, REFERENCE_KEY, write_png, write_svg};
+use super::reproduce::plots::{Curve, Figure, Panel, REFERENCE_KEY, png, svg};
 use super::reproduce::{Csv, num, write_file};
 use clap::{Args, ValueEnum};
 use std::io::Write;
@@ -243,15 +243,13 @@ fn scaling_figure(s: &scaling::Scaling) -> Figure {
 }
 
 fn draw(dir: &Path, fig: &Figure, names: &mut Vec<String>) -> Result<(), UsageError> {
-    for ext in ["png", "svg"] {
-        let path = dir.join(format!("{}.{ext}", fig.id));
-        let drawn = if ext == "png" {
-            write_png(fig, &path)
-        } else {
-            write_svg(fig, &path)
-        };
-        drawn.map_err(|e| UsageError(format!("cannot draw {}.{ext}: {e}", fig.id)))?;
-        names.push(format!("{}.{ext}", fig.id));
+    let drawn = |ext: &str, e: String| UsageError(format!("cannot draw {}.{ext}: {e}", fig.id));
+    let png = png(fig).map_err(|e| drawn("png", e))?;
+    let svg = svg(fig).map_err(|e| drawn("svg", e))?;
+    for (ext, bytes) in [("png", png.as_slice()), ("svg", svg.as_bytes())] {
+        let name = format!("{}.{ext}", fig.id);
+        write_file(dir, &name, bytes)?;
+        names.push(name);
     }
     Ok(())
 }

@@ -88,18 +88,14 @@ fn write_outputs(
     }
     let method_names: Vec<&str> = methods.iter().map(|m| m.name).collect();
     for figure in plots::figures(results, &method_names) {
-        for (ext, result) in [
-            (
-                "png",
-                plots::write_png(&figure, &dir.join(format!("{}.png", figure.id))),
-            ),
-            (
-                "svg",
-                plots::write_svg(&figure, &dir.join(format!("{}.svg", figure.id))),
-            ),
-        ] {
-            result.map_err(|e| UsageError(format!("cannot draw {}.{ext}: {e}", figure.id)))?;
-            names.push(format!("{}.{ext}", figure.id));
+        let drawn =
+            |ext: &str, e: String| UsageError(format!("cannot draw {}.{ext}: {e}", figure.id));
+        let png = plots::png(&figure).map_err(|e| drawn("png", e))?;
+        let svg = plots::svg(&figure).map_err(|e| drawn("svg", e))?;
+        for (ext, bytes) in [("png", png.as_slice()), ("svg", svg.as_bytes())] {
+            let name = format!("{}.{ext}", figure.id);
+            write_file(dir, &name, bytes)?;
+            names.push(name);
         }
     }
     let text = report::markdown(config, results, methods, seconds);

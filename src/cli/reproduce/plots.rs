@@ -10,7 +10,6 @@ use plotters::coord::Shift;
 use plotters::element::{DashedPathElement, DynElement, IntoDynElement};
 use plotters::prelude::*;
 use plotters::style::FontStyle;
-use std::path::Path;
 use std::sync::OnceLock;
 
 /// One curve of a panel.
@@ -806,16 +805,34 @@ fn size(fig: &Figure) -> (u32, u32) {
     )
 }
 
-/// Writes the figure as PNG.
-pub fn write_png(fig: &Figure, path: &Path) -> Result<(), String> {
+/// The figure as a PNG file's bytes: drawn in memory, encoded as the bitmap backend's own
+/// `save` encodes it (the `image` crate's PNG encoder with its defaults). The caller writes the
+/// bytes, so that a failed write names the file and its cause.
+pub fn png(fig: &Figure) -> Result<Vec<u8>, String> {
+    use image::ImageEncoder;
     register_font()?;
-    draw(BitMapBackend::new(path, size(fig)).into_drawing_area(), fig)
+    let (w, h) = size(fig);
+    let mut rgb = vec![0u8; 3 * w as usize * h as usize];
+    draw(
+        BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area(),
+        fig,
+    )?;
+    let mut bytes = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut bytes)
+        .write_image(&rgb, w, h, image::ColorType::Rgb8)
+        .map_err(|e| format!("cannot encode the PNG: {e}"))?;
+    Ok(bytes)
 }
 
-/// Writes the figure as SVG.
-pub fn write_svg(fig: &Figure, path: &Path) -> Result<(), String> {
+/// The figure as an SVG file's text (drawn in memory; the caller writes it).
+pub fn svg(fig: &Figure) -> Result<String, String> {
     register_font()?;
-    draw(SVGBackend::new(path, size(fig)).into_drawing_area(), fig)
+    let mut text = String::new();
+    draw(
+        SVGBackend::with_string(&mut text, size(fig)).into_drawing_area(),
+        fig,
+    )?;
+    Ok(text)
 }
 
 #[cfg(test)]

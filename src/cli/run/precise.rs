@@ -5,7 +5,9 @@ use super::{PROGRESS, PrecisionArg, ProblemArg, RunArgs, usage};
 use crate::cli::{UsageError, progress};
 use ecr::exact::duffing_error_dd;
 use ecr::problems::{Duffing, HenonHeiles, Wind};
-use ecr_runtime::precision::{DoubleDouble, GenericReport, GenericStepper, GenericSystem, Real};
+use ecr_runtime::precision::{
+    DoubleDouble, GENERIC_MAX_SWEEPS, GenericReport, GenericStepper, GenericSystem, Real,
+};
 use serde_json::{Value, json};
 use std::io::Write;
 use std::sync::atomic::Ordering;
@@ -107,7 +109,25 @@ fn integrate<P: GenericSystem<Dd>>(
         bar.set(n as u64);
     });
     bar.finish_and_clear();
-    let report = report.map_err(|e| UsageError(format!("integration failed: {e}")))?;
+    let report = report.map_err(|e| match e.root() {
+        // The library's message suggests the Newton solver, which double-double refuses.
+        ecr_runtime::Error::NoConvergence {
+            sweeps, residual, ..
+        } => {
+            let at = match &e {
+                ecr_runtime::Error::AtStep { step, t, h, .. } => {
+                    format!("step {step} from t = {t:?} (h = {h:?}): ")
+                }
+                _ => String::new(),
+            };
+            UsageError(format!(
+                "integration failed: {at}the stage equations did not converge to double-double \
+                 round-off: residual {residual:e} after {sweeps} sweeps; try a smaller --h or \
+                 more --max-sweeps (default {GENERIC_MAX_SWEEPS})"
+            ))
+        }
+        _ => UsageError(format!("integration failed: {e}")),
+    })?;
     Ok((report, y, start.elapsed().as_secs_f64()))
 }
 
