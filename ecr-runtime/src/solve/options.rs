@@ -39,6 +39,14 @@ pub struct Options {
     pub(super) max_steps: usize,
 }
 
+// Options are shared by the threads that solve the members of an ensemble (and may be sent to
+// another thread): a compile error, in every build, if a field stops being `Send + Sync`.
+const _: () = {
+    const fn assert_send_sync<T: Send + Sync>() {}
+    assert_send_sync::<Options>();
+    assert_send_sync::<Event>();
+};
+
 impl Default for Options {
     /// rtol = 1e−6, atol = 1e−9, [`Method::Auto`] over r = 1..=8, output at every verified
     /// step, the stepper's default [`SolverSettings`], at most 10⁸ steps in one run.
