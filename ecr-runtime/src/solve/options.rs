@@ -164,7 +164,7 @@ impl Options {
             .fold(0.0, |m, x| if x > m || x.is_nan() { x } else { m })
     }
 
-    pub(super) fn validate(&self) -> Result<()> {
+    pub(crate) fn validate(&self) -> Result<()> {
         let tol_ok = |x: f64| x.is_finite() && x >= 0.0;
         if !tol_ok(self.rtol) || !tol_ok(self.atol) || self.rtol + self.atol == 0.0 {
             return Err(Error::InvalidParameter(format!(
