@@ -12,7 +12,7 @@
 //!     .potential(|y| 0.25 * y[0].powi(4));
 //! let template = Problem::new(&system, [0.1, 0.0], (0.0, 10.0))?;
 //! let amplitudes = linspace(0.1, 2.0, 100);
-//! let ensemble = Ensemble::new(template, amplitudes.len(), |template, i| {
+//! let ensemble = Ensemble::new(template, amplitudes.len(), |template: &Problem<_>, i| {
 //!     Problem::new(*template.system(), [amplitudes[i], 0.0], template.span())
 //! });
 //! // Kept per member: q at t = 10 and the energy error, not the trajectory.
