@@ -142,7 +142,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let c = colour(*index, n);
         chart.draw_series(s.points.iter().map(|&p| Circle::new(p, 1, c.filled())))?;
     }
-    let ymax = worst.max(1e-16).log10().ceil() + 0.5;
+    let ymax = worst.max(TOL).log10().ceil() + 0.5;
     let mut errors = ChartBuilder::on(&right)
         .caption("Energy error of every orbit", (FONT, 18))
         .margin(14)
