@@ -150,6 +150,10 @@
 //! - [`solve`]: [`Problem`](solve::Problem) → [`solve`](solve::Problem::solve) →
 //!   [`Solution`](solve::Solution): a tolerance (or a fixed r and h), output times, events,
 //!   observers, the continuous solution.
+//! - [`ensemble`]: many trajectories, an [`Ensemble`](ensemble::Ensemble) of problems made
+//!   from a template and solved on every core, each member's result as the user's output
+//!   function maps it, or its own error; in member order, bit for bit the same with any
+//!   number of threads.
 //! - [`prelude`]: the names a program that solves a problem uses.
 //!
 //! The paper's test problems, the methods it compares with and the elliptic functions of the
@@ -163,6 +167,7 @@
 
 mod concurrent;
 mod double_double;
+pub mod ensemble;
 pub mod error;
 pub mod integrate;
 pub mod operator;
@@ -185,6 +190,7 @@ pub use nalgebra;
 /// What a program that solves a problem needs, in one import: `use ecr_runtime::prelude::*;`.
 pub mod prelude {
     pub use crate::ecr_method;
+    pub use crate::ensemble::{Control, Ensemble, EnsembleSolution, MemberError, MemberResult};
     pub use crate::nalgebra::{DMatrix, DVector, SMatrix};
     pub use crate::operator::{
         Circulant, Circulant2d, Dense, DenseStatic, Diagonal, LinearOperator, Oscillator, Scalar,

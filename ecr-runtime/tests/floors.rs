@@ -20,6 +20,7 @@ const FLOORS: &[&[&str]] = &[
     &["second_order"],
     &["integrate"],
     &["solve"],
+    &["ensemble"],
     &["lib"],
 ];
 

@@ -1,6 +1,7 @@
 //! Command-line interface.
 
 mod bench;
+mod ensemble;
 mod memory;
 mod output;
 mod progress;
@@ -44,6 +45,12 @@ enum Command {
     /// An unusable --out directory prints one line starting with 'error: ' on stderr and exits
     /// with status 2.
     Bench(bench::BenchArgs),
+    /// Many trajectories: a test problem (duffing, henon-heiles) over a grid of parameters and
+    /// initial values, every member solved on every core; one CSV row per member.
+    ///
+    /// Bad input prints one line starting with 'error: ' on stderr and exits with status 2; a
+    /// member that fails is a row of the table with its status and message.
+    Ensemble(ensemble::EnsembleArgs),
 }
 
 /// A failure the user can fix: printed as one line, exit status 2.
@@ -89,6 +96,7 @@ where
         Command::Run(args) => run::run(&args, out),
         Command::Reproduce(args) => reproduce::run(&args, out),
         Command::Bench(args) => bench::run(&args, out),
+        Command::Ensemble(args) => ensemble::run(&args, out),
     }
 }
 

@@ -49,6 +49,15 @@
 //! in another PID namespace has a process id that means nothing here): runs remove those, and
 //! `-old-` and `-del-` directories left by killed runs, beside their `--out`. Where `flock`
 //! does not work (some network filesystems), nothing is treated as stale: leftovers stay.
+//!
+//! # Single files ([`OutputFile`])
+//!
+//! A command whose `--out` is one file (`ecr ensemble`) writes it the same way: into
+//! `.<name>.ecr-new-<pid>-<k>` beside it, created (and locked) before the work, which proves
+//! that the directory takes new files; at the end the data is written there, synced, and the
+//! file renamed over `<name>` in one step. `<name>` holds the previous file or the complete new
+//! one, never a part; a run killed before the rename leaves only its hidden staging file,
+//! which the next run with the same `--out` removes (it is stale when it can be locked).
 
 use super::UsageError;
 use std::fs::{self, File};
@@ -603,6 +612,152 @@ impl Drop for OutputDir {
     }
 }
 
+/// A file replaced whole (see the module docs): staged before the work, put in place by
+/// [`commit`](Self::commit); the staging file is removed if dropped before.
+pub struct OutputFile {
+    /// `--out` as given, for messages.
+    shown: PathBuf,
+    /// Where the file goes: `--out` with symlinks followed.
+    target: PathBuf,
+    stage: PathBuf,
+    /// The staging file, open for writing.
+    file: io::BufWriter<File>,
+    /// The staging file open once more and locked (`flock`) for the life of the run, if
+    /// `flock` works there.
+    _lock: Option<File>,
+    done: bool,
+}
+
+impl OutputFile {
+    /// Checks that `out` can be written: not a directory, in a directory that takes a new
+    /// file (the staging file, created now). Removes staging files of killed runs beside it.
+    ///
+    /// # Errors
+    /// One line naming the file and what is wrong.
+    pub fn stage(out: &Path) -> Result<Self, UsageError> {
+        let shown = out.display();
+        let (target, _) = follow(out)?;
+        let name = target
+            .file_name()
+            .and_then(|n| n.to_str())
+            .ok_or_else(|| {
+                UsageError(format!(
+                    "output file '{shown}' must end in a file name (UTF-8)"
+                ))
+            })?
+            .to_string();
+        let parent = match target.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        if target.is_dir() {
+            return Err(UsageError(format!("output file '{shown}' is a directory")));
+        }
+        if !parent.is_dir() {
+            return Err(UsageError(format!(
+                "cannot write output file '{shown}': directory '{}' does not exist",
+                parent.display()
+            )));
+        }
+        // Within NAME_MAX whatever the target's length (see `side_tag`).
+        let prefix = format!(".{}.ecr-new-", side_tag(&name));
+        if let Ok(list) = fs::read_dir(&parent) {
+            for entry in list.flatten() {
+                let stale = entry
+                    .file_name()
+                    .to_str()
+                    .is_some_and(|f| f.starts_with(&prefix))
+                    && entry.file_type().is_ok_and(|t| t.is_file())
+                    && matches!(lock(&entry.path(), false), Ok(Some(_)));
+                if stale {
+                    let _ = fs::remove_file(entry.path());
+                }
+            }
+        }
+        let pid = std::process::id();
+        for k in 0..1000u32 {
+            let stage = parent.join(format!("{prefix}{pid}-{k}"));
+            match fs::OpenOptions::new()
+                .write(true)
+                .create_new(true)
+                .open(&stage)
+            {
+                Ok(file) => {
+                    return Ok(OutputFile {
+                        shown: out.to_path_buf(),
+                        target,
+                        _lock: lock(&stage, true).ok().flatten(),
+                        stage,
+                        file: io::BufWriter::new(file),
+                        done: false,
+                    });
+                }
+                Err(e) if e.kind() == io::ErrorKind::AlreadyExists => {}
+                Err(e) => {
+                    return Err(UsageError(format!(
+                        "cannot write output file '{shown}' (staging it as '{}'): {e}",
+                        stage.display()
+                    )));
+                }
+            }
+        }
+        Err(UsageError(format!(
+            "cannot write output file '{shown}': 1000 staging files of this process beside it"
+        )))
+    }
+
+    /// Syncs what was written (through [`io::Write`]) and renames the staging file over the
+    /// target.
+    ///
+    /// # Errors
+    /// One line if the data cannot be written (the staging file is removed) or the file cannot
+    /// be put in place.
+    pub fn commit(mut self) -> Result<(), UsageError> {
+        use std::io::Write;
+        let shown = self.shown.display().to_string();
+        let written = self
+            .file
+            .flush()
+            .and_then(|()| self.file.get_ref().sync_all());
+        if let Err(e) = written {
+            return Err(UsageError(format!(
+                "cannot write output file '{shown}': {e}"
+            )));
+        }
+        fs::rename(&self.stage, &self.target)
+            .map_err(|e| UsageError(format!("cannot put output file '{shown}' in place: {e}")))?;
+        self.done = true;
+        // The rename itself on disk (where the directory can be opened and synced).
+        let parent = match self.target.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => Path::new("."),
+        };
+        if let Ok(dir) = File::open(parent) {
+            let _ = dir.sync_all();
+        }
+        Ok(())
+    }
+}
+
+/// Writes go to the staging file (buffered); [`OutputFile::commit`] puts them in place.
+impl io::Write for OutputFile {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        self.file.write(buf)
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        self.file.flush()
+    }
+}
+
+impl Drop for OutputFile {
+    fn drop(&mut self) {
+        if !self.done {
+            let _ = fs::remove_file(&self.stage);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -732,5 +887,38 @@ mod tests {
             assert_eq!(names(&root.0), [name]);
             fs::remove_dir_all(&out).unwrap();
         }
+    }
+
+    /// A staged file replaces the target whole at its commit; until then (and if dropped) the
+    /// target is untouched and only the hidden staging file exists; a staging file that no run
+    /// holds is removed by the next run.
+    #[test]
+    fn a_file_is_replaced_whole_or_not_at_all() {
+        use std::io::Write;
+        let root = Scratch::new("file");
+        let out = root.0.join("table.csv");
+        fs::write(&out, "old\n").unwrap();
+        let mut staged = OutputFile::stage(&out).unwrap();
+        staged.write_all(b"new, part").unwrap();
+        assert_eq!(fs::read_to_string(&out).unwrap(), "old\n");
+        drop(staged);
+        assert_eq!(names(&root.0), ["table.csv"]);
+        assert_eq!(fs::read_to_string(&out).unwrap(), "old\n");
+        // What a killed run leaves: a staging file nobody holds.
+        fs::write(root.0.join(".table.csv.ecr-new-1-0"), "killed").unwrap();
+        let mut staged = OutputFile::stage(&out).unwrap();
+        assert_eq!(
+            names(&root.0).len(),
+            2,
+            "the stale one removed, a new one made"
+        );
+        staged.write_all(b"new\n").unwrap();
+        staged.commit().unwrap();
+        assert_eq!(fs::read_to_string(&out).unwrap(), "new\n");
+        assert_eq!(names(&root.0), ["table.csv"]);
+        assert!(
+            OutputFile::stage(&root.0).is_err(),
+            "a directory is not a file"
+        );
     }
 }

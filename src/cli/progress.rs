@@ -58,3 +58,18 @@ pub fn spinner(what: &str) -> ProgressBar {
     spinner.enable_steady_tick(Duration::from_millis(120));
     spinner
 }
+
+/// A bar of `len` items called `unit` (drawn on stderr if stderr is a terminal, else hidden),
+/// for work whose items take long enough to update it after each one.
+pub fn count_bar(len: u64, unit: &str) -> ProgressBar {
+    if !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new(len);
+    if let Ok(style) = ProgressStyle::with_template(&format!(
+        "[{{wide_bar}}] {{human_pos}}/{{human_len}} {unit}, {{eta}} left"
+    )) {
+        bar.set_style(style);
+    }
+    bar
+}

@@ -13,8 +13,9 @@ pub enum Direction {
     Falling,
 }
 
-/// An event function e(t, y).
-type EventFn = Box<dyn Fn(f64, &[f64]) -> f64>;
+/// An event function e(t, y). `Send + Sync`, so that [`Options`](super::Options) holding it
+/// can be shared by the threads that solve the members of an ensemble.
+type EventFn = Box<dyn Fn(f64, &[f64]) -> f64 + Send + Sync>;
 
 /// A user function e(t, y) whose sign changes are located during the integration.
 pub struct Event {
@@ -26,8 +27,9 @@ pub struct Event {
 impl Event {
     /// An event at the zeros of `f(t, y)` (sign changes between output points of the
     /// integration's finest grid; a zero touched without a sign change inside one step is not
-    /// seen). A NaN from `f` is an error of the solve.
-    pub fn new(f: impl Fn(f64, &[f64]) -> f64 + 'static) -> Self {
+    /// seen). A NaN from `f` is an error of the solve. `f` is `Send + Sync` (it captures no
+    /// `Rc` or `Cell`): the options that hold it may be shared between threads.
+    pub fn new(f: impl Fn(f64, &[f64]) -> f64 + Send + Sync + 'static) -> Self {
         Event {
             f: Box::new(f),
             terminal: false,

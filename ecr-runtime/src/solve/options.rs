@@ -61,6 +61,14 @@ impl fmt::Debug for Options {
     }
 }
 
+// Options are shared by the threads that solve the members of an ensemble (and may be sent to
+// another thread): a compile error, in every build, if a field stops being `Send + Sync`.
+const _: () = {
+    const fn assert_send_sync<T: Send + Sync>() {}
+    assert_send_sync::<Options>();
+    assert_send_sync::<Event>();
+};
+
 impl Default for Options {
     /// rtol = 1e−6, atol = 1e−9, [`Method::Auto`] over r = 1..=8, output at every verified
     /// step, the stepper's default [`SolverSettings`], at most 10⁸ steps in one run.
@@ -202,7 +210,7 @@ impl Options {
             .fold(0.0, |m, x| if x > m || x.is_nan() { x } else { m })
     }
 
-    pub(super) fn validate(&self) -> Result<()> {
+    pub(crate) fn validate(&self) -> Result<()> {
         let tol_ok = |x: f64| x.is_finite() && x >= 0.0;
         if !tol_ok(self.rtol) || !tol_ok(self.atol) || self.rtol + self.atol == 0.0 {
             return Err(Error::InvalidParameter(format!(
