@@ -837,6 +837,20 @@ mod tests {
     }
 
     #[test]
+    fn ratios_at_equal_h_pair_the_common_step_sizes() {
+        let at = |h: f64, cpu: f64| Point {
+            h,
+            ..point(1e-6, cpu)
+        };
+        let c = [at(0.1, 1.0), at(0.05, 3.0), at(0.025, 2.0), at(0.0125, 9.0)];
+        let lib = [at(0.025, 8.0), at(0.05, 6.0), at(0.1, 4.0)];
+        let (a, b): (Vec<&Point>, Vec<&Point>) = (c.iter().collect(), lib.iter().collect());
+        // Ratios 0.25, 0.5, 0.25 at the three common h (0.0125 has no partner).
+        assert_eq!(ratios_at_equal_h(&a, &b), Some((3, 0.25, 0.25, 0.5)));
+        assert_eq!(ratios_at_equal_h(&a, &b[..0]), None);
+    }
+
+    #[test]
     fn ratios_have_two_significant_digits() {
         assert_eq!(ratio(0.63), "0.63");
         assert_eq!(ratio(1.234), "1.23");

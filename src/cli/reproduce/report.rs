@@ -691,6 +691,27 @@ fn wins_at_equal_h(s: &ErrorStudy, names: &[&str]) -> (Vec<(String, usize)>, usi
     (wins, compared)
 }
 
+/// The smallest of (method, value, shown value), then in parentheses EC2P's when another
+/// method wins, or the runner-up's when EC2P does; "—" if none is finite.
+fn winner(mut v: Vec<(&str, f64, String)>) -> String {
+    v.retain(|x| x.1.is_finite());
+    v.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let Some(first) = v.first() else {
+        return "—".to_string();
+    };
+    let other = if first.0 == PRIMARY {
+        v.get(1).map(|x| format!("next: {} {}", x.0, x.2))
+    } else {
+        v.iter()
+            .find(|x| x.0 == PRIMARY)
+            .map(|x| format!("{} {}", x.0, x.2))
+    };
+    match other {
+        Some(o) => format!("{} {} ({o})", first.0, first.2),
+        None => format!("{} {}", first.0, first.2),
+    }
+}
+
 /// The verdict that opens the report: per error study (and the energy or Lyapunov study of
 /// the same problem), who wins at equal h, at equal error and in energy.
 fn verdict(out: &mut String, r: &Results, names: &[&str]) {
@@ -699,13 +720,14 @@ fn verdict(out: &mut String, r: &Results, names: &[&str]) {
         out,
         "Who wins in this run, per problem (the details follow, study by study). **At equal \
          h**: at each step size, the fixed-step method(s) with the smallest global error \
-         (within 1 %), counted over the study's step sizes (DOP853 chooses its own steps and \
-         is left out). **At equal error**: the least wall time to reach {PRIMARY}'s smallest \
+         (within 1 %), counted over the study's step sizes (\"3/4\": the smallest at 3 of 4; \
+         DOP853 chooses its own steps and is left out). **At equal error**: the least wall time to reach {PRIMARY}'s smallest \
          error in the study (log time interpolated in log error between a method's runs; ≤: \
          its cheapest run is already more accurate; one run per point, a single thread: \
          `ecr bench` times methods properly). **Energy**: the smallest max abs(H − H0) at the \
          study's h (for the dissipative wind problem: the smallest deviation from the \
-         reference's Lyapunov function).\n"
+         reference's Lyapunov function). In parentheses: {PRIMARY}'s value where another \
+         method wins, the next method's where {PRIMARY} does.\n"
     );
     let _ = writeln!(
         out,
@@ -731,19 +753,7 @@ fn verdict(out: &mut String, r: &Results, names: &[&str]) {
                 })
             })
             .unwrap_or_default();
-        let Some(&(best, value)) = runs
-            .iter()
-            .filter(|x| x.1.is_finite())
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-        else {
-            return "—".to_string();
-        };
-        match runs.iter().find(|x| x.0 == PRIMARY) {
-            Some(&(_, p)) if best != PRIMARY => {
-                format!("{best} {} ({PRIMARY} {})", e(value), e(p))
-            }
-            _ => format!("{best} {}", e(value)),
-        }
+        winner(runs.iter().map(|&(m, v)| (m, v, e(v))).collect())
     };
     for s in error_studies(r) {
         let (wins, compared) = wins_at_equal_h(s, names);
@@ -763,24 +773,16 @@ fn verdict(out: &mut String, r: &Results, names: &[&str]) {
             .fold(f64::INFINITY, f64::min)
             .max(order_floor(s));
         let at_error = if target.is_finite() {
-            let costs: Vec<(&str, (f64, bool))> = names
-                .iter()
-                .filter_map(|m| Some((*m, time_to_reach(s, m, target)?)))
-                .collect();
             let show =
                 |(t, bound): (f64, bool)| format!("{}{t:.2e} s", if bound { "≤ " } else { "" });
-            match costs.iter().min_by(|a, b| a.1.0.total_cmp(&b.1.0)) {
-                None => "—".to_string(),
-                Some(&(m, c)) => {
-                    let ours = costs.iter().find(|x| x.0 == PRIMARY).map(|x| x.1);
-                    match ours {
-                        Some(o) if m != PRIMARY => {
-                            format!("{m} {} ({PRIMARY} {}) to {}", show(c), show(o), e(target))
-                        }
-                        _ => format!("{m} {} to {}", show(c), e(target)),
-                    }
-                }
-            }
+            let costs = names
+                .iter()
+                .filter_map(|m| {
+                    let c = time_to_reach(s, m, target)?;
+                    Some((*m, c.0, show(c)))
+                })
+                .collect();
+            format!("{} to reach {}", winner(costs), e(target))
         } else {
             "—".to_string()
         };
