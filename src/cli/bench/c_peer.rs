@@ -426,15 +426,18 @@ mod tests {
         }
     }
 
-    /// The accurate form keeps the amplitude of a pure oscillator (k = 0, ω = 20, Strang,
-    /// 10⁶ steps): its relative energy error stays below 1e−12, as `RotationSplitting`'s (its
-    /// test: 3.7e−13 in the last tenth).
+    /// The accurate form keeps the amplitude of a pure oscillator (k = 0, ω = 20, order 8,
+    /// h = 0.0123, 10⁵ steps of 15 rotations by 0.1–0.2 rad): its relative energy error stays
+    /// below 5e−12 (measured: 3.5e−13 without fused multiply-add, 4.6e−13 with). The plain
+    /// form's rotations have determinants 1 + O(ulp), the same every step, and its energy drifts
+    /// to 3.3e−11 here: what raises its round-off floor on Duffing (the summary's table). (For
+    /// rotations by about 1 rad, h = 0.0625, the two drift alike, 1e−11 to 3e−11.)
     #[test]
     fn accurate_form_keeps_the_amplitude() {
-        let (omega, h, n) = (20.0, 0.0123, 1_000_000usize);
+        let (omega, h, n) = (20.0, 0.0123, 100_000usize);
         let energy = |y: &[f64]| 0.5 * (y[1] * y[1] + omega * omega * y[0] * y[0]);
         for form in FORMS {
-            let m = RotationC::new(omega, 0.0, 2, h, form).unwrap();
+            let m = RotationC::new(omega, 0.0, 8, h, form).unwrap();
             let mut y = vec![1.0, 0.3];
             let e0 = energy(&y);
             let mut last = 0.0f64;
@@ -450,7 +453,7 @@ mod tests {
                 "pure oscillator, {form:?}: relative energy error in the last tenth {last:.2e}"
             );
             if form != Form::Plain {
-                assert!(last < 1e-12, "{form:?}: {last:e}");
+                assert!(last < 5e-12, "{form:?}: {last:e}");
             }
         }
     }
