@@ -687,7 +687,7 @@ fn wins_at_equal_h(s: &ErrorStudy, names: &[&str]) -> (Vec<(String, usize)>, usi
         }
     }
     wins.retain(|w| w.1 > 0);
-    wins.sort_by(|a, b| b.1.cmp(&a.1));
+    wins.sort_by_key(|w| std::cmp::Reverse(w.1));
     (wins, compared)
 }
 
