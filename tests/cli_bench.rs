@@ -106,7 +106,17 @@ fn quick_bench_writes_everything() {
     }
     let duffing = check_csv(&out.join("duffing.csv"));
     for m in [
-        "TC2P", "RKEPC2", "EEI3s4", "HochOst4", "Gauss2", "AVF", "ExpAVF",
+        "TC2P",
+        "RKEPC2",
+        "EEI3s4",
+        "HochOst4",
+        "Gauss2",
+        "AVF",
+        "ExpAVF",
+        "Rot8 (Kahan–Li)",
+        "Rot8 C (Kahan–Li)",
+        "Rot8 C plain (Kahan–Li)",
+        "Rot2 C (Strang)",
     ] {
         assert!(duffing.iter().any(|x| x == m), "duffing.csv lacks {m}");
     }
@@ -145,6 +155,11 @@ fn quick_bench_writes_everything() {
         "in parentheses without set-up",
         "Run-time / macro",
         "Same CPU budget",
+        "Integration, not process start-up",
+        "### Duffing: the rotation splitting in C against the library's, loop against loop",
+        "| 8 | ",
+        "## Process start-up (in none of the times above)",
+        "`ecr --version` (start-up alone)",
     ] {
         assert!(summary.contains(needle), "summary.md lacks {needle:?}");
     }
@@ -191,6 +206,7 @@ fn problem_restricts_the_work_precision_part() {
         "| duffing |",
         "Same CPU budget",
         "DOP853's cost per evaluation",
+        "rotation splitting in C",
     ] {
         assert!(!summary.contains(absent), "summary.md has {absent:?}");
     }

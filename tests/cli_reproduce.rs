@@ -152,6 +152,7 @@ fn quick_reproduction_writes_everything() {
     for fig in FIGURES.iter().chain(&ERROR_CSVS).chain(&ENERGY_CSVS) {
         assert!(report.contains(fig), "report.md does not mention {fig}");
     }
+    check_verdict_first(&report);
     check_no_repeated_sentence(&report);
     check_significant_digits(&report, 6);
     check_omitted_methods_explained(&out, &report);
@@ -162,6 +163,44 @@ fn quick_reproduction_writes_everything() {
             svg.contains("reference error (est.)"),
             "{fig}.svg: no floor line"
         );
+    }
+}
+
+/// The report opens with its verdict: after the title and the line that says how it was made,
+/// the first section is "## Verdict", a table with one row per error study (every problem:
+/// Duffing, wind, NLS) saying who wins at equal h, at equal error and in energy, each cell
+/// naming a method; the details (methods, setup, problems) come after it.
+fn check_verdict_first(report: &str) {
+    let sections: Vec<&str> = report.lines().filter(|l| l.starts_with("## ")).collect();
+    assert_eq!(sections.first(), Some(&"## Verdict"), "{sections:?}");
+    let start = report.find("## Verdict").unwrap();
+    let end = report.find("## Methods").expect("a Methods section");
+    assert!(start < end);
+    let verdict = &report[start..end];
+    assert!(
+        verdict.contains(
+            "| problem | at equal h: smallest error | at equal error: least time | energy: smallest error |"
+        ),
+        "{verdict}"
+    );
+    for id in ERROR_CSVS {
+        let row = verdict
+            .lines()
+            .find(|l| l.starts_with("| ") && l.contains(&format!("(`{id}`)")))
+            .unwrap_or_else(|| panic!("no verdict row for {id}: {verdict}"));
+        let cells: Vec<&str> = row.trim_matches('|').split(" | ").map(str::trim).collect();
+        assert_eq!(cells.len(), 4, "{row}");
+        for cell in &cells[1..] {
+            assert!(
+                ["EC2P", "RKEPC2", "EEI3s4", "DOP853"]
+                    .iter()
+                    .any(|m| cell.contains(m)),
+                "{id}: a verdict cell names no method: {row}"
+            );
+        }
+    }
+    for problem in ["Duffing", "wind", "NLS"] {
+        assert!(verdict.contains(problem), "the verdict lacks {problem}");
     }
 }
 

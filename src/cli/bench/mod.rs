@@ -6,10 +6,12 @@
 //! Reuses the `ecr reproduce` harness: its problem type, method registry, boxed integrators,
 //! output-directory and CSV helpers and plotting code.
 
+mod c_peer;
 mod macros;
 mod peers;
 mod scaling;
 mod series;
+mod startup;
 mod summary;
 mod sweep;
 
@@ -259,6 +261,7 @@ fn write_outputs(
     c: &Config,
     results: Option<&sweep::Results>,
     scaling: Option<&scaling::Scaling>,
+    start: Option<&Result<startup::Startup, String>>,
     seconds: f64,
 ) -> Result<Vec<String>, UsageError> {
     let mut names = Vec::new();
@@ -278,7 +281,7 @@ fn write_outputs(
     write_file(
         dir,
         "summary.md",
-        summary::markdown(c, results, scaling, seconds).as_bytes(),
+        summary::markdown(c, results, scaling, start, seconds).as_bytes(),
     )?;
     names.push("summary.md".to_string());
     Ok(names)
@@ -306,6 +309,10 @@ pub fn run(args: &BenchArgs, out: &mut dyn Write) -> Result<(), UsageError> {
         Some(Part::Scaling) => None,
         _ => Some(sweep::run_all(&c, &problems).map_err(UsageError)?),
     };
+    // With the work–precision part, whose times it is kept out of.
+    let start_up = results
+        .as_ref()
+        .map(|_| startup::measure(if args.quick { 3 } else { 20 }));
     let bar = indicatif::ProgressBar::new_spinner();
     let scaling = match args.only {
         Some(Part::WorkPrecision) => None,
@@ -321,6 +328,7 @@ pub fn run(args: &BenchArgs, out: &mut dyn Write) -> Result<(), UsageError> {
         &c,
         results.as_ref(),
         scaling.as_ref(),
+        start_up.as_ref(),
         seconds,
     )?;
     let replaced = staged.commit()?;

@@ -4,8 +4,10 @@
 //!
 //! - Duffing (q'' + (ω² + k²)q = 2k²q³): splitting with the exact linear flow (kick–rotate–kick)
 //!   composed to orders 2, 4, 6, 8, with the rotation from the operator's φ-bank
-//!   ("Split{p} rot") and written out with cos/sin of the scalar frequency ("Rot{p}");
-//!   Störmer–Verlet composed to the same orders; ETDRK4.
+//!   ("Split{p} rot"), written out with cos/sin of the scalar frequency ("Rot{p}", the
+//!   library's `RotationSplitting` stepped by `integrate`), and the same method written in C
+//!   for speed and called once over [0, T] ("Rot{p} C", and "Rot{p} C plain" with the plain
+//!   2 × 2 rotation: [`super::c_peer`]); Störmer–Verlet composed to the same orders; ETDRK4.
 //! - Wind: ETDRK4 (its g changes both components, so g's flow is not explicit and the
 //!   splittings do not apply).
 //! - NLS: split-step Fourier of orders 2, 4, 6, 8 (the exact linear flow by FFT, the nonlinear
@@ -13,7 +15,8 @@
 //!
 //! DOP853 (one call over [0, T]) is added to every problem by the sweep.
 
-use super::series::{K, OMEGA, Series, static_system, step_series};
+use super::c_peer::{Form, RotationC};
+use super::series::{BoxedRun, Family, K, Knob, OMEGA, Series, static_system, step_series};
 use crate::cli::reproduce::methods::boxed;
 use ecr::baselines::etdrk4::Etdrk4;
 use ecr::baselines::split_step::SplitStep;
@@ -77,6 +80,23 @@ pub fn duffing(d: &Duffing, h0: f64) -> Vec<Series> {
             h0,
             move |h| boxed(RotationSplitting::new(second_order()?, order, h)),
         ));
+    }
+    let (omega, k) = (d.omega(), d.k());
+    for (form, suffix) in [(Form::Accurate, "C"), (Form::Plain, "C plain")] {
+        for order in [2, 4, 6, 8] {
+            v.push(Series {
+                label: format!("Rot{order} {suffix} ({})", composition_name(order)),
+                group: GROUP,
+                family: Family::Peer,
+                r: None,
+                s: None,
+                knob: Knob::Step { h0 },
+                build: Box::new(move |h| {
+                    Ok(Box::new(RotationC::new(omega, k, order, h, form)?) as BoxedRun)
+                }),
+                g_cost: None,
+            });
+        }
     }
     for order in [2, 4, 6, 8] {
         v.push(step_series(

@@ -5,8 +5,10 @@
 //! the cost of their own evaluations of g, and the run-time stepper's time over the macro
 //! stepper's at equal r and h.
 
+use super::c_peer::{Form, RotationC};
 use super::scaling::{self, Scaling};
-use super::series::{Family, solver};
+use super::series::{Family, K, OMEGA, solver};
+use super::startup::{self, Startup};
 use super::sweep::{
     Config, DopOverhead, ERROR_CEILING, ERROR_FLOOR, G_REPEATS, LongRun, Point, ProblemRun, Results,
 };
@@ -146,8 +148,15 @@ fn named(c: Option<(&str, f64, bool)>) -> String {
     )
 }
 
-/// The Markdown summary of what was run.
-pub fn markdown(c: &Config, r: Option<&Results>, sc: Option<&Scaling>, seconds: f64) -> String {
+/// The Markdown summary of what was run; `start` is the process start-up measured apart (run
+/// with the work–precision part).
+pub fn markdown(
+    c: &Config,
+    r: Option<&Results>,
+    sc: Option<&Scaling>,
+    start: Option<&Result<Startup, String>>,
+    seconds: f64,
+) -> String {
     let mut out = String::new();
     let w = &mut out;
     let _ = writeln!(
@@ -165,6 +174,9 @@ pub fn markdown(c: &Config, r: Option<&Results>, sc: Option<&Scaling>, seconds: 
     }
     if let Some(r) = r {
         work_precision(w, c, r);
+    }
+    if let Some(s) = start {
+        startup_section(w, s);
     }
     if let Some(s) = sc {
         scaling_section(w, s);
@@ -256,6 +268,18 @@ fn work_precision(w: &mut String, c: &Config, r: &Results) {
          are not assessed.\n",
         c.repeats, settings.tolerance, c.budget, c.attempts
     );
+    let _ = writeln!(
+        w,
+        "**Integration, not process start-up.** Every time here is measured inside this one \
+         process around set-up and integration: none includes what a command-line run pays \
+         besides (loading the executable, parsing arguments, writing its output), which is \
+         measured apart under \"Process start-up\" below. The Duffing peers \"Rot{{p}} C\" and \
+         \"Rot{{p}} C plain\" are the rotation splitting written in C for speed \
+         (`benches/c/rotation_splitting_duffing.c`, compiled into this executable) and called \
+         once over [0, T], so ours against them is loop against loop, as against every other \
+         peer; \"Rot{{p}}\" is the same method as the library's `RotationSplitting`, stepped by \
+         `integrate`.\n"
+    );
     if r.problems.len() < 3 {
         let ids: Vec<&str> = r.problems.iter().map(|p| p.id).collect();
         let _ = writeln!(
@@ -318,6 +342,119 @@ fn work_precision(w: &mut String, c: &Config, r: &Results) {
     }
     for p in &r.problems {
         problem_section(w, p);
+    }
+    if let Some(p) = r.problems.iter().find(|p| p.id == "duffing") {
+        rotation_loops(w, p);
+    }
+}
+
+/// CPU(a) / CPU(b) at the step sizes both series have (relative 1e−9): (count, median,
+/// smallest, largest).
+pub fn ratios_at_equal_h(a: &[&Point], b: &[&Point]) -> Option<(usize, f64, f64, f64)> {
+    let mut v: Vec<f64> = a
+        .iter()
+        .filter_map(|x| {
+            let y = b.iter().find(|y| (x.h - y.h).abs() <= 1e-9 * x.h.abs())?;
+            (x.cpu > 0.0 && y.cpu > 0.0).then(|| x.cpu / y.cpu)
+        })
+        .collect();
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    let median = if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    };
+    Some((n, median, v[0], v[n - 1]))
+}
+
+/// Duffing: the rotation splitting in C against the library's `RotationSplitting`, and its
+/// plain form against its accurate one, at equal h (the same method, so the same error up to
+/// round-off: the time ratio is the implementation's).
+fn rotation_loops(w: &mut String, p: &ProblemRun) {
+    let find = |prefix: String| {
+        p.series
+            .iter()
+            .find(|s| s.0.starts_with(&format!("{prefix} (")))
+            .map(|s| s.0.as_str())
+    };
+    let mut rows = Vec::new();
+    for order in [2, 4, 6, 8] {
+        let (Some(lib), Some(c), Some(plain)) = (
+            find(format!("Rot{order}")),
+            find(format!("Rot{order} C")),
+            find(format!("Rot{order} C plain")),
+        ) else {
+            continue;
+        };
+        let cell = |a: &str, b: &str| {
+            ratios_at_equal_h(&series_points(p, a), &series_points(p, b)).map_or_else(
+                || "-".to_string(),
+                |(n, med, lo, hi)| format!("{} ({}–{}, {n} h)", ratio(med), ratio(lo), ratio(hi)),
+            )
+        };
+        rows.push(format!(
+            "| {order} | {} | {} | {} |",
+            cell(c, lib),
+            cell(plain, c),
+            cell(plain, lib)
+        ));
+    }
+    if rows.is_empty() {
+        return;
+    }
+    let fma = RotationC::new(OMEGA, K, 8, 0.1, Form::Accurate).map_or_else(
+        |e| format!("could not be set up ({e})"),
+        |m| {
+            if m.uses_fma() {
+                "ran with fused multiply-add, which this processor has".to_string()
+            } else {
+                "ran without fused multiply-add, which this processor or build lacks".to_string()
+            }
+        },
+    );
+    let _ = writeln!(
+        w,
+        "### Duffing: the rotation splitting in C against the library's, loop against loop\n\n\
+         CPU time (set-up included) at equal h, median over the step sizes both series have \
+         (smallest–largest, count); < 1: the first is faster. \"C\": the accurate form \
+         (determinant 1 to far below an ulp, as `RotationSplitting`; here it {fma}); \"C \
+         plain\": the plain 2 × 2 rotation, one dependent operation less per stage, whose \
+         amplitude drifts by about an ulp per rotation (its round-off floor in the table \
+         above).\n\n\
+         | order | Rot{{p}} C / Rot{{p}} | Rot{{p}} C plain / Rot{{p}} C | Rot{{p}} C plain / Rot{{p}} \
+         |\n|---|---|---|---|"
+    );
+    for row in rows {
+        let _ = writeln!(w, "{row}");
+    }
+    let _ = writeln!(w);
+}
+
+fn startup_section(w: &mut String, s: &Result<Startup, String>) {
+    let _ = writeln!(w, "## Process start-up (in none of the times above)\n");
+    match s {
+        Ok(s) => {
+            let _ = writeln!(
+                w,
+                "This executable run as a child process, wall-clock time from spawning it to \
+                 its exit, the fastest of {} interleaved runs each: `ecr --version` (start-up \
+                 alone) {:.2} ms; `ecr {}` (start-up, one EC6P set-up and step, its JSON \
+                 report) {:.2} ms. A program that integrates in its own process pays its \
+                 start-up once: compare integration with the tables above, start-up with \
+                 these.\n",
+                s.runs,
+                s.version * 1e3,
+                startup::ONE_STEP.join(" "),
+                s.one_step * 1e3
+            );
+        }
+        Err(e) => {
+            let _ = writeln!(w, "Not measured: {e}.\n");
+        }
     }
 }
 
@@ -697,6 +834,20 @@ mod tests {
             })
         );
         assert_eq!(paired(&a, &b[..0]), None);
+    }
+
+    #[test]
+    fn ratios_at_equal_h_pair_the_common_step_sizes() {
+        let at = |h: f64, cpu: f64| Point {
+            h,
+            ..point(1e-6, cpu)
+        };
+        let c = [at(0.1, 1.0), at(0.05, 3.0), at(0.025, 2.0), at(0.0125, 9.0)];
+        let lib = [at(0.025, 8.0), at(0.05, 6.0), at(0.1, 4.0)];
+        let (a, b): (Vec<&Point>, Vec<&Point>) = (c.iter().collect(), lib.iter().collect());
+        // Ratios 0.25, 0.5, 0.25 at the three common h (0.0125 has no partner).
+        assert_eq!(ratios_at_equal_h(&a, &b), Some((3, 0.25, 0.25, 0.5)));
+        assert_eq!(ratios_at_equal_h(&a, &b[..0]), None);
     }
 
     #[test]

@@ -622,6 +622,181 @@ fn lyapunov_section(out: &mut String, s: &LyapunovStudy, claims: &mut Vec<String
     }
 }
 
+/// Wall seconds a method's runs of an error study need to reach global error ≤ `target`: log
+/// time interpolated linearly in log error between the two runs around it, or the cheapest run
+/// that reaches it when it is the first (an upper bound, `true`). `None` if no run reaches it.
+fn time_to_reach(s: &ErrorStudy, method: &str, target: f64) -> Option<(f64, bool)> {
+    let mut pts: Vec<(f64, f64)> = s
+        .runs
+        .iter()
+        .filter(|r| r.method == method && r.error.is_finite() && r.seconds > 0.0)
+        .map(|r| (r.seconds, r.error))
+        .collect();
+    pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let i = pts.iter().position(|p| p.1 <= target)?;
+    if i == 0 || pts[i].1 <= 0.0 {
+        return Some((pts[i].0, i == 0));
+    }
+    let ((c0, e0), (c1, e1)) = (pts[i - 1], pts[i]);
+    let t = ((e0.log10() - target.log10()) / (e0.log10() - e1.log10())).clamp(0.0, 1.0);
+    Some((
+        10f64.powf(c0.log10() + t * (c1.log10() - c0.log10())),
+        false,
+    ))
+}
+
+/// Per step size of the study, the fixed-step methods whose error is the smallest (within
+/// 1 %): each method with the number of step sizes it wins, most first, and the number of
+/// step sizes compared.
+fn wins_at_equal_h(s: &ErrorStudy, names: &[&str]) -> (Vec<(String, usize)>, usize) {
+    let fixed = |m: &str| {
+        s.runs
+            .iter()
+            .any(|r| r.method == m && !r.own_steps && r.error.is_finite())
+            && !s.runs.iter().any(|r| r.method == m && r.own_steps)
+    };
+    let methods: Vec<&str> = names.iter().copied().filter(|m| fixed(m)).collect();
+    let mut hs: Vec<f64> = s
+        .runs
+        .iter()
+        .filter(|r| !r.own_steps)
+        .map(|r| r.h)
+        .collect();
+    hs.sort_by(|a, b| b.total_cmp(a));
+    hs.dedup();
+    let mut wins: Vec<(String, usize)> = methods.iter().map(|m| (m.to_string(), 0)).collect();
+    let mut compared = 0;
+    for &h in &hs {
+        let errs: Vec<(usize, f64)> = methods
+            .iter()
+            .enumerate()
+            .filter_map(|(i, m)| {
+                let r = s.runs.iter().find(|r| r.method == *m && r.h == h)?;
+                r.error.is_finite().then_some((i, r.error))
+            })
+            .collect();
+        if errs.len() < 2 {
+            continue;
+        }
+        compared += 1;
+        let best = errs.iter().map(|e| e.1).fold(f64::INFINITY, f64::min);
+        for (i, e) in errs {
+            if e <= best + 0.01 * best.abs() {
+                wins[i].1 += 1;
+            }
+        }
+    }
+    wins.retain(|w| w.1 > 0);
+    wins.sort_by_key(|w| std::cmp::Reverse(w.1));
+    (wins, compared)
+}
+
+/// The smallest of (method, value, shown value), then in parentheses EC2P's when another
+/// method wins, or the runner-up's when EC2P does; "—" if none is finite.
+fn winner(mut v: Vec<(&str, f64, String)>) -> String {
+    v.retain(|x| x.1.is_finite());
+    v.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let Some(first) = v.first() else {
+        return "—".to_string();
+    };
+    let other = if first.0 == PRIMARY {
+        v.get(1).map(|x| format!("next: {} {}", x.0, x.2))
+    } else {
+        v.iter()
+            .find(|x| x.0 == PRIMARY)
+            .map(|x| format!("{} {}", x.0, x.2))
+    };
+    match other {
+        Some(o) => format!("{} {} ({o})", first.0, first.2),
+        None => format!("{} {}", first.0, first.2),
+    }
+}
+
+/// The verdict that opens the report: per error study (and the energy or Lyapunov study of
+/// the same problem), who wins at equal h, at equal error and in energy.
+fn verdict(out: &mut String, r: &Results, names: &[&str]) {
+    let _ = writeln!(out, "## Verdict\n");
+    let _ = writeln!(
+        out,
+        "Who wins in this run, per problem (the details follow, study by study). **At equal \
+         h**: at each step size, the fixed-step method(s) with the smallest global error \
+         (within 1 %), counted over the study's step sizes (\"3/4\": the smallest at 3 of 4; \
+         DOP853 chooses its own steps and is left out). **At equal error**: the least wall time to reach {PRIMARY}'s smallest \
+         error in the study (log time interpolated in log error between a method's runs; ≤: \
+         its cheapest run is already more accurate; one run per point, a single thread: \
+         `ecr bench` times methods properly). **Energy**: the smallest max abs(H − H0) at the \
+         study's h (for the dissipative wind problem: the smallest deviation from the \
+         reference's Lyapunov function). In parentheses: {PRIMARY}'s value where another \
+         method wins, the next method's where {PRIMARY} does.\n"
+    );
+    let _ = writeln!(
+        out,
+        "| problem | at equal h: smallest error | at equal error: least time | energy: smallest error |\n|---|---|---|---|"
+    );
+    let energy = |label: &str| -> String {
+        let runs: Vec<(&str, f64)> = energy_studies(r)
+            .into_iter()
+            .find(|e| e.label == label)
+            .map(|e| {
+                e.runs
+                    .iter()
+                    .map(|x| (x.method.as_str(), x.max_abs))
+                    .collect()
+            })
+            .or_else(|| {
+                (r.p2d_lyapunov.label == label).then(|| {
+                    r.p2d_lyapunov
+                        .runs
+                        .iter()
+                        .map(|x| (x.method.as_str(), x.max_dev))
+                        .collect()
+                })
+            })
+            .unwrap_or_default();
+        winner(runs.iter().map(|&(m, v)| (m, v, e(v))).collect())
+    };
+    for s in error_studies(r) {
+        let (wins, compared) = wins_at_equal_h(s, names);
+        let at_h = if wins.is_empty() {
+            "—".to_string()
+        } else {
+            wins.iter()
+                .map(|(m, n)| format!("{m} {n}/{compared}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let target = s
+            .runs
+            .iter()
+            .filter(|x| x.method == PRIMARY && x.error.is_finite())
+            .map(|x| x.error)
+            .fold(f64::INFINITY, f64::min)
+            .max(order_floor(s));
+        let at_error = if target.is_finite() {
+            let show =
+                |(t, bound): (f64, bool)| format!("{}{t:.2e} s", if bound { "≤ " } else { "" });
+            let costs = names
+                .iter()
+                .filter_map(|m| {
+                    let c = time_to_reach(s, m, target)?;
+                    Some((*m, c.0, show(c)))
+                })
+                .collect();
+            format!("{} to reach {}", winner(costs), e(target))
+        } else {
+            "—".to_string()
+        };
+        let _ = writeln!(
+            out,
+            "| {} (`{}`) | {at_h} | {at_error} | {} |",
+            s.label,
+            s.id,
+            energy(&s.label)
+        );
+    }
+    let _ = writeln!(out);
+}
+
 /// The full report.
 pub fn markdown(c: &Config, r: &Results, methods: &[Method], seconds: f64) -> String {
     let names = method_names(methods);
@@ -644,6 +819,7 @@ pub fn markdown(c: &Config, r: &Results, methods: &[Method], seconds: f64) -> St
             "Full"
         }
     );
+    verdict(&mut out, r, &names);
     let _ = writeln!(out, "## Methods\n");
     let _ = writeln!(out, "| name | method |\n|---|---|");
     for m in methods {
