@@ -70,12 +70,6 @@ impl Trail {
         }
     }
 
-    pub(super) fn clear(&mut self) {
-        while let Some(p) = self.points.pop_front() {
-            self.recycle(p);
-        }
-    }
-
     fn recycle(&mut self, p: GridPoint) {
         self.spare.push(p.y);
         if let Some(f) = p.f {

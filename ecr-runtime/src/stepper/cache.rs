@@ -56,8 +56,6 @@ struct Inner<Bk> {
     entries: Vec<(BankKey, Arc<Built<Bk>>)>,
     /// The most banks kept.
     capacity: usize,
-    /// Banks built through this cache (for the solver's statistics and tests).
-    builds: usize,
 }
 
 impl<Bk: PhiBank> BankCache<Bk> {
@@ -67,7 +65,6 @@ impl<Bk: PhiBank> BankCache<Bk> {
             inner: Mutex::new(Inner {
                 entries: Vec::new(),
                 capacity: capacity.max(1),
-                builds: 0,
             }),
         }
     }
@@ -94,7 +91,6 @@ impl<Bk: PhiBank> BankCache<Bk> {
         // numbers: building is deterministic); the first one stored is kept.
         let built = Arc::new(build()?);
         let mut inner = self.inner.lock().unwrap_or_else(PoisonError::into_inner);
-        inner.builds += 1;
         if let Some(i) = inner.entries.iter().position(|(k, _)| *k == key) {
             return Ok(Arc::clone(&inner.entries[i].1));
         }
@@ -111,14 +107,6 @@ impl<Bk: PhiBank> BankCache<Bk> {
             inner.entries.remove(0);
         }
         Ok(built)
-    }
-
-    /// Banks built through this cache so far.
-    pub(crate) fn builds(&self) -> usize {
-        self.inner
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner)
-            .builds
     }
 }
 
