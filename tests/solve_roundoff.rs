@@ -43,8 +43,8 @@ fn the_duffing_separatrix_is_never_a_false_ok() {
     let d = Duffing::new(5.0, 5.0).unwrap();
     for (t_end, tol) in [(3.0, 1e-5), (3.5, 1e-3), (2.0, 1e-8), (3.0, 1e-7)] {
         let problem = Problem::new(d.system().unwrap(), d.initial_value(), (0.0, t_end)).unwrap();
-        let s = (5.0 * t_end as f64).cosh().recip();
-        let exact = [(5.0 * t_end as f64).tanh(), 5.0 * s * s];
+        let s = (5.0 * t_end).cosh().recip();
+        let exact = [(5.0 * t_end).tanh(), 5.0 * s * s];
         match outcome(&problem, t_end, tol, &exact) {
             Ok(err) => assert!(
                 err <= 10.0,
