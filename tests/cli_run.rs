@@ -979,3 +979,42 @@ fn tolerance_run_past_the_address_space_is_refused_before_the_work() {
         "{err}"
     );
 }
+
+/// The solve's trace goes where the CLI's other messages go and follows their rules: a stderr
+/// that cannot be written (/dev/full) does not end the run (it exited 101 with nothing on
+/// stdout), and `ECR_SOLVE_TRACE=0` turns it off (it turned it on).
+#[test]
+fn the_trace_never_breaks_the_run() {
+    let args = [
+        "run",
+        "--problem",
+        "duffing",
+        "--t-end",
+        "20",
+        "--tol",
+        "1e-8",
+    ];
+    let run = |value: &str, stderr: std::process::Stdio| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_ecr"))
+            .args(args)
+            .env("ECR_SOLVE_TRACE", value)
+            .stderr(stderr)
+            .output()
+            .expect("run ecr")
+    };
+    let full = std::fs::OpenOptions::new()
+        .write(true)
+        .open("/dev/full")
+        .expect("/dev/full");
+    let out = run("1", full.into());
+    assert_eq!(out.status.code(), Some(0), "{:?}", out.status);
+    let report = String::from_utf8(out.stdout).unwrap();
+    assert!(report.contains("\"error_estimate\""), "{report}");
+    let on = run("1", std::process::Stdio::piped());
+    assert!(String::from_utf8_lossy(&on.stderr).contains("solve:"));
+    for off in ["0", "", "false", "off"] {
+        let out = run(off, std::process::Stdio::piped());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!err.contains("solve:"), "ECR_SOLVE_TRACE={off:?}: {err}");
+    }
+}

@@ -189,6 +189,20 @@ impl StepPlan {
             )));
         }
         let tol = Self::TIME_ULPS * f64::EPSILON * t0.abs().max(t_end.abs());
+        if span <= tol {
+            // The span is within the rounding of time: one step of the span.
+            return Ok(StepPlan {
+                full_steps: 0,
+                last: (span > 0.0).then_some(span),
+            });
+        }
+        if h <= tol {
+            return Err(Error::InvalidInput(format!(
+                "h = {h:e} is below the resolution of time on [{t0:?}, {t_end:?}] \
+                 ({}ε·|t| = {tol:e}): the steps could not advance the clock",
+                Self::TIME_ULPS
+            )));
+        }
         let at = |n: f64| t0 + n * h;
         // The most full steps that end no later than t_end (up to round-off); the division
         // may be off by one either way.

@@ -5,7 +5,7 @@ use clap::{Args, ValueEnum};
 use ecr::problems::{Duffing, Fpu, HenonHeiles, Nls, Wind};
 use ecr_runtime::integrate::{IntegrateOptions, Integrator, Report, StepPlan, integrate};
 use ecr_runtime::second_order::TcStepper;
-use ecr_runtime::solve::{Options, Problem, Solution, SolveError};
+use ecr_runtime::solve::{Options, Problem, Solution, SolveError, solve_stepper_bytes};
 use ecr_runtime::stepper::{
     EcStepper, PARALLEL_MIN_DIM, Predictor, SizedEcStepper, SolverSettings, StageSolver,
     StepperBytes, ec_stepper_bytes,
@@ -496,32 +496,17 @@ fn memory_estimate(args: &RunArgs) -> f64 {
 const SOLVE_MAX_R: usize = 8;
 
 /// A bound on the bytes `ecr run --tol` needs: the peak of the steppers the solve holds at
-/// once ([`StepperBytes::peak_of`]), each as [`ec_stepper_bytes`] counts it for the largest r
-/// the solve may choose (s = r): the answer, its two checks (2h, 3h) and the dense output's
-/// (constant predictor); the stacks of the
+/// once ([`solve_stepper_bytes`]: the answer, its three checks and the output stepper, and
+/// the banks the solve keeps) for the largest r the solve may choose; the stacks of the
 /// threads, a base of 32 MiB, and 200 bytes per component for the system itself (its
 /// spectrum, FFT plans and scratch), the initial value, the solution and the JSON report
 /// (measured, as the peak resident memory of NLS solves, docs/solve.md#memory). The solves to
 /// the tolerance and to tolerance/1000 (the reference) run one after the other.
 fn solve_memory_estimate(args: &RunArgs) -> Result<f64, UsageError> {
     fn of<S: System>(system: S, r: usize) -> f64 {
-        let settings = SolverSettings::default();
-        let dense = SolverSettings {
-            predictor: Predictor::Constant,
-            ..settings
-        };
-        let bytes = |s: &SolverSettings| ec_stepper_bytes(&system, r, r, s);
-        let steppers = [
-            bytes(&settings),
-            bytes(&settings),
-            bytes(&settings),
-            bytes(&dense),
-        ];
-        let peak = steppers
-            .into_iter()
-            .collect::<Option<Vec<_>>>()
-            .and_then(|s| StepperBytes::peak_of(&s));
-        peak.map_or(f64::INFINITY, |b| b as f64) + 200.0 * system.dim() as f64
+        solve_stepper_bytes(&system, r, true, &SolverSettings::default())
+            .map_or(f64::INFINITY, |b| b as f64)
+            + 200.0 * system.dim() as f64
     }
     let r = args.r.unwrap_or(SOLVE_MAX_R).min(ecr_codegen::MAX_R);
     let steppers = match args.problem {

@@ -100,6 +100,15 @@ impl<S: System> Problem<S> {
                 options.max_steps
             )));
         }
+        // Refused before the run rather than aborted on an allocation midway.
+        let outputs = options.t_eval.as_ref().map_or(steps + 1, Vec::len);
+        let dense = if options.dense { steps + 1 } else { 0 };
+        ensure_output_fits(
+            self.y0.len(),
+            outputs,
+            dense,
+            usize::from(observer.is_some()),
+        )?;
         let grid = Grid {
             a: self.t0,
             h,
@@ -174,6 +183,15 @@ impl<S: System> Problem<S> {
         let r0 = self.first_order(options);
         let mut runs = Runs::new(system, options, r0, true, &self.y0, start, same, 1.0, cache)?;
         let floor = runs.noise_at_start();
+        if !floor.is_finite() {
+            let big = self.y0.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+            return Err(Error::InvalidInput(format!(
+                "y0 holds {big:e}, too close to the largest f64 ({:e}) for its rounding to be \
+                 bounded: the steps would overflow; rescale the problem",
+                f64::MAX
+            ))
+            .into());
+        }
         if !at_most(floor, 0.25) {
             return Err(Error::InvalidInput(format!(
                 "rtol = {:e}, atol = {:e} is below what f64 can verify for this problem: the \
@@ -200,11 +218,55 @@ impl<S: System> Problem<S> {
             kept.keep(chunk, Some(1.0), 0.0)?;
             return Ok(self.assemble(options, kept, stats, r0, Some(1.0), None, 0.0));
         }
+        let resolution = StepPlan::TIME_ULPS * f64::EPSILON * self.t0.abs().max(self.t_end.abs());
+        if span <= resolution {
+            return self.within_rounding_of_time(options, r0, floor, observer, cache);
+        }
         let pilot = match options.method {
             Method::Order(r) => self.pilot(options, r, None, &mut stats, cache)?,
             _ => self.pilot_auto(options, &mut stats, cache)?,
         };
         self.verified_run(options, pilot, stats, observer, cache)
+    }
+
+    /// A span within the rounding of time (a few ulps of t): one step of the span, checked
+    /// against y₀ moved along the vector field by the span (their difference bounds the
+    /// step's error from above while the step is that small), or the rounding of y₀ if that is
+    /// larger.
+    fn within_rounding_of_time(
+        &self,
+        options: &Options,
+        r: usize,
+        floor: f64,
+        observer: &mut Observer<'_>,
+        cache: &Arc<SolveCache<S>>,
+    ) -> std::result::Result<Solution<S>, SolveError> {
+        let span = self.t_end - self.t0;
+        let mut solution = self.fixed(options, r, span, observer, cache)?;
+        let mut moved = self.y0.clone();
+        super::run::drift(&*self.system, &mut moved, span)?;
+        let end = match solution.y.last() {
+            Some(y) if solution.t.last() == Some(&self.t_end) => {
+                let e = options.scaled(y.iter().zip(&moved).map(|(a, b)| a - b), y);
+                floor.max(e)
+            }
+            _ => floor,
+        };
+        if !at_most(end, 1.0) {
+            return Err(Error::InvalidInput(format!(
+                "the span [{:?}, {:?}] is within the rounding of time, yet one step of it and \
+                 y0 moved along the vector field differ by {end:.2e} times the tolerance",
+                self.t0, self.t_end
+            ))
+            .into());
+        }
+        let n = solution.t.len();
+        solution.error_estimates = vec![floor; n];
+        if let Some(last) = solution.error_estimates.last_mut() {
+            *last = end;
+        }
+        solution.error_estimate = Some(end);
+        Ok(solution)
     }
 
     /// The verified run (see the module docs): chunks of the three runs from t₀; after each
@@ -419,18 +481,23 @@ impl<S: System> Problem<S> {
                             .iter()
                             .filter(|pr| pr.points.last().is_some_and(|l| l.0 > elapsed))
                             .map(|pr| {
+                                // At least order r (half the nominal), the least the pilot
+                                // accepts, also where that attempt showed none (its checking
+                                // runs outside their asymptotic regime say nothing of it).
                                 let scaled = Profile {
-                                    order: pr.order.map(|q| q.max(0.5 * p)),
+                                    order: Some(pr.order.unwrap_or(0.5 * p).max(0.5 * p)),
                                     ..pr.clone()
                                 };
                                 scaled.predict(h, p, span)
                             })
                             .fold(0.0, f64::max);
-                        let projected = if at_end {
+                        // This attempt's own projection, and with what earlier ones saw.
+                        let own = if at_end {
                             worst_out
                         } else {
-                            project(&history, span).max(worst_out).max(from_seen)
+                            project(&history, span).max(worst_out)
                         };
+                        let projected = if at_end { own } else { own.max(from_seen) };
                         options.say(|| format!(
                                 "solve:   t = {t:.4}: outputs {worst_out:.3e}, meets (q {level:.3}) {stat:.3e}, noise {noise:.3e}, order {order:?}, projected {projected:.3e}"
                             ));
@@ -457,8 +524,11 @@ impl<S: System> Problem<S> {
                         // at the level of the rounding: no step size helps. Where only the
                         // projection of the rounding says so, the attempt goes on to the end
                         // of the span to measure it (once): a smaller step would not change it.
+                        // Differences at the rounding's level (no order) are the floor only
+                        // if this attempt's own growth projects them over the tolerance: an
+                        // earlier attempt's larger step says nothing about this one's rounding.
                         let at_floor = floor >= 0.5 * projected.max(worst_out)
-                            || (order.is_none() && runs.maxima.fine > 0.0);
+                            || (order.is_none() && runs.maxima.fine > 0.0 && own > 1.0);
                         if (over || projected > 1.0)
                             && (at_floor || steep > 1.0)
                             && !at_end
@@ -489,9 +559,15 @@ impl<S: System> Problem<S> {
                                 "the tolerance is at the round-off floor of this problem: by t = \
                                  {t:?} the rounding of {steps} steps (and of time itself), \
                                  amplified by the flow, is {noise:.2e} times the tolerance \
-                                 ({floor:.2e} projected to the end of the span), and the \
+                                 ({:.2e} projected to the end of the span{}), and the \
                                  differences between the runs are no larger: no step size \
-                                 verifies the answer at this tolerance"
+                                 verifies the answer at this tolerance",
+                                floor.max(own.min(steep)),
+                                if own.min(steep) > floor {
+                                    " at the rate it grows"
+                                } else {
+                                    ""
+                                }
                             );
                             return Err(
                                 self.best_effort(options, runs, kept, stats, r, why, observer)

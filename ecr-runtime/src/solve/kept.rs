@@ -205,7 +205,9 @@ impl<S: System> Problem<S> {
             });
         }
         events.sort_by(|a, b| a.t.total_cmp(&b.t));
-        let error_estimate = verified.then(|| es.iter().copied().fold(event_worst, f64::max));
+        // Nothing kept, nothing estimated: `None`, not a zero that reads as exact.
+        let error_estimate = (verified && !(es.is_empty() && events.is_empty()))
+            .then(|| es.iter().copied().fold(event_worst, f64::max));
         let dense = options.dense.then(|| {
             let d = self.y0.len();
             let (mut gt, mut gh, mut fine, mut coarse) =

@@ -207,3 +207,40 @@ pub fn linspace(a: f64, b: f64, n: usize) -> Vec<f64> {
             .collect(),
     }
 }
+
+/// The bytes the steppers of one solve of `system` at order 2r hold at their peak, or `None`
+/// if the count overflows a `usize`: the returned run, its three checking runs (2h, 3h and
+/// the perturbed 3h run that measures the sensitivity to rounding) and the output stepper,
+/// each as [`ec_stepper_bytes`](crate::stepper::ec_stepper_bytes) counts it (s = r), together
+/// with the largest bank once more (a change of step size builds the new bank before the old
+/// one goes) and the banks the solve keeps for step sizes it may come back to (at most 12, and
+/// at most 256 MiB beyond the largest). With `check == false` (a fixed-step solve) the
+/// returned run and the output stepper only.
+///
+/// [`Problem::solve`] compares this with what can be allocated before it builds the steppers
+/// of an order, and refuses that order with an error naming the size rather than aborting
+/// part-way; the CLI adds its own overheads to it for its `--tol` memory check.
+pub fn solve_stepper_bytes<S: System>(
+    system: &S,
+    r: usize,
+    check: bool,
+    settings: &crate::stepper::SolverSettings,
+) -> Option<usize> {
+    use crate::stepper::{Predictor, SolverSettings, StepperBytes, ec_stepper_bytes};
+    let run = ec_stepper_bytes(system, r, r, settings)?;
+    let output = ec_stepper_bytes(
+        system,
+        r,
+        r,
+        &SolverSettings {
+            predictor: Predictor::Constant,
+            ..*settings
+        },
+    )?;
+    let mut held = vec![run; if check { 4 } else { 1 }];
+    held.push(output);
+    let peak = StepperBytes::peak_of(&held)?;
+    let budget = (crate::stepper::CACHE_BUDGET * size_of::<f64>()).max(run.bank);
+    let kept = run.bank.saturating_mul(SOLVE_CACHE_BANKS).min(budget);
+    peak.checked_add(kept)
+}

@@ -265,6 +265,18 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
         order_hint: f64,
         cache: &Arc<SolveCache<S>>,
     ) -> Result<Self> {
+        crate::storage::ensure_bytes_allocatable(
+            &format!(
+                "the steppers of EC{r}P for this solve (d = {}{})",
+                system.dim(),
+                if check {
+                    ", with its checking runs"
+                } else {
+                    ""
+                }
+            ),
+            super::solve_stepper_bytes(system, r, check, &options.settings),
+        )?;
         let ev_prev = options
             .events
             .iter()
@@ -447,7 +459,10 @@ impl<'a, 'o, S: System> Runs<'a, 'o, S> {
         y.iter()
             .zip(&self.before)
             .map(|(v, b)| {
-                let n = walk * (v.abs() + big) + clock * (v - b).abs();
+                // Below the smallest normal number f64 keeps fewer digits: a subnormal
+                // state's steps differ by far more than ε|y| (by as much as 1e-315 at
+                // |y| = 1e-310), so a difference below it is round-off whatever its ratio.
+                let n = walk * (v.abs() + big) + clock * (v - b).abs() + f64::MIN_POSITIVE;
                 let w = self.options.atol + self.options.rtol * v.abs();
                 // A component measured relative to itself at 0 (atol = 0): only an exact
                 // agreement verifies it, which the differences themselves show.
@@ -956,7 +971,7 @@ fn add_cost_into(to: &mut Cost, c: &Cost) {
 
 /// y ← y + dt·(Ay + g(y)): the state moved along the vector field by a time `dt` of the order of
 /// the rounding of time (the error, O(dt²), is far below ε).
-fn drift<S: System>(system: &S, y: &mut [f64], dt: f64) -> Result<()> {
+pub(super) fn drift<S: System>(system: &S, y: &mut [f64], dt: f64) -> Result<()> {
     let d = y.len();
     let mut f = vec![0.0; d];
     let mut g = vec![0.0; d];

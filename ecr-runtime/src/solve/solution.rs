@@ -129,10 +129,11 @@ pub struct Solution<S = ()> {
     /// (max_i |e_i| / (atol + rtol |y_i|)): every entry ≤ 1 in a solution that `solve`
     /// returns with `Ok`. Empty for a fixed method.
     pub error_estimates: Vec<f64>,
-    /// The largest of [`error_estimates`](Self::error_estimates); `None` for a fixed method.
+    /// The largest of [`error_estimates`](Self::error_estimates) and of the events'
+    /// estimates; `None` for a fixed method and for a solution with no output.
     pub error_estimate: Option<f64>,
-    /// The order the check observed (log₂ of the ratio of the differences between the runs
-    /// with steps 4h, 2h and h; at most 2r, `None` where the differences were at round-off
+    /// The order the check observed (from the ratio of the differences of the runs with steps
+    /// 2h and 3h to the returned run with step h; at most 2r, `None` where the differences were at round-off
     /// level or for a fixed method).
     pub observed_order: Option<f64>,
     /// The located zeros of the events, in time order.
@@ -314,7 +315,15 @@ impl<S: System> Solution<S> {
                 found: out.len(),
             });
         }
-        let (first, last) = (dense.t[0], *dense.t.last().unwrap_or(&dense.t[0]));
+        let first = dense.t[0];
+        // The integrated span ends where the solution's times end (a terminal event or an
+        // observer's stop between grid points included), not at the last grid point.
+        let last = self
+            .t
+            .iter()
+            .chain(self.events.iter().map(|e| &e.t))
+            .chain(dense.t.last())
+            .fold(first, |a, &b| a.max(b));
         if !(first..=last).contains(&t) {
             return Err(Error::InvalidInput(format!(
                 "t = {t:?} is outside the integrated span [{first:?}, {last:?}]"
@@ -327,6 +336,14 @@ impl<S: System> Solution<S> {
             return Ok(());
         }
         let dt = t - dense.t[k];
+        if dt < 4.0 * f64::MIN_POSITIVE
+            || dt <= crate::integrate::StepPlan::TIME_ULPS * f64::EPSILON * t.abs()
+        {
+            // Within the rounding of time of the grid point (a step of it would round to
+            // nothing): the grid state moved along the vector field.
+            out.copy_from_slice(fine);
+            return super::run::drift(&*dense.system, out, dt);
+        }
         let cache = std::sync::Arc::new(super::SolveCache::<S>::new(2));
         let mut step = DenseStep::new(&*dense.system, dense.r, dense.settings, &cache);
         let (mut n, mut g) = dense.evals.get();

@@ -112,4 +112,4 @@ impl<Bk: PhiBank> BankCache<Bk> {
 
 /// The most numbers the banks a cache keeps may hold in all (256 MiB of f64): beyond it the
 /// least recently used go first.
-const CACHE_BUDGET: usize = 1 << 25;
+pub(crate) const CACHE_BUDGET: usize = 1 << 25;

@@ -78,7 +78,7 @@ mod step;
 mod stopping;
 
 pub use buffers::{BufferParts, Buffers, StaticBuffers, VecBuffers};
-pub(crate) use cache::BankCache;
+pub(crate) use cache::{BankCache, CACHE_BUDGET};
 pub use fused::{FUSED_MAX_ENTRIES, FusedMaps, fuses_stages, stage_matrices};
 pub use gemv::gemv_cm;
 pub use kernel::{FixedKernel, Kernel, RuntimeKernel};
