@@ -8,7 +8,6 @@ use ecr_runtime::second_order::TcStepper;
 use ecr_runtime::solve::{Options, Problem, Solution, SolveError, solve_stepper_bytes};
 use ecr_runtime::stepper::{
     EcStepper, PARALLEL_MIN_DIM, Predictor, SizedEcStepper, SolverSettings, StageSolver,
-    StepperBytes, ec_stepper_bytes,
 };
 use ecr_runtime::system::System;
 use serde_json::{Value, json};
