@@ -4,7 +4,7 @@
 //! # Quick start: to a tolerance
 //!
 //! A problem (system, y₀, time span), solved to a tolerance; the solution owns its data
-//! (`docs/solve.md` in the repository says how the order and the step are chosen):
+//! ([`guide::solve`] says how the order and the step are chosen):
 //!
 //! ```
 //! use ecr::prelude::*;
@@ -81,6 +81,36 @@ pub use ecr_runtime::solve::{Options, Problem, Solution};
 #[doc = include_str!("../README.md")]
 #[cfg(doctest)]
 pub struct ReadmeDoctests;
+
+/// The repository's guides (`docs/*.md`) as pages of this documentation: the same text.
+///
+/// Their code blocks are sketches, not doctests; the README's examples are compiled as
+/// doctests, and the programs the guides describe are compiled and run by the `downstream`
+/// crate's tests.
+#[cfg(not(doctest))]
+#[allow(clippy::doc_lazy_continuation, clippy::doc_overindented_list_items)]
+#[allow(
+    rustdoc::broken_intra_doc_links,
+    rustdoc::invalid_html_tags,
+    rustdoc::bare_urls,
+    rustdoc::invalid_rust_codeblocks
+)]
+pub mod guide {
+    #[doc = include_str!("../docs/method.md")]
+    pub mod method {}
+    #[doc = include_str!("../docs/solve.md")]
+    pub mod solve {}
+    #[doc = include_str!("../docs/ensembles.md")]
+    pub mod ensembles {}
+    #[doc = include_str!("../docs/errata.md")]
+    pub mod errata {}
+    #[doc = include_str!("../docs/architecture.md")]
+    pub mod architecture {}
+    #[doc = include_str!("../docs/cli.md")]
+    pub mod cli {}
+    #[doc = include_str!("../docs/performance.md")]
+    pub mod performance {}
+}
 
 #[cfg(feature = "baselines")]
 pub mod baselines;

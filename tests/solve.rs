@@ -7,7 +7,7 @@ use ecr::problems::{Duffing, Nls, Wind};
 use ecr::runtime::integrate::{IntegrateOptions, integrate};
 use ecr::runtime::nalgebra::DMatrix;
 use ecr::runtime::operator::Dense;
-use ecr::runtime::solve::{Direction, Event, Options, Problem, SolveError, Status};
+use ecr::runtime::solve::{Direction, Event, Options, Problem, SolveError, Status, linspace};
 use ecr::runtime::stepper::EcStepper;
 use ecr::runtime::system::{Semilinear, System};
 
@@ -433,4 +433,111 @@ fn a_tolerance_below_the_f64_floor_is_refused() {
             "tol {tol:e}: {message}"
         );
     }
+}
+
+/// Lotka–Volterra u' = u(2/3 − 4/3 v), v' = v(u − 1) (no linear part).
+fn lotka_volterra() -> Problem<impl System> {
+    let system = Semilinear::new(
+        ecr::runtime::operator::Zero::new(2),
+        |y: &[f64], g: &mut [f64]| {
+            g[0] = y[0] * (2.0 / 3.0 - 4.0 / 3.0 * y[1]);
+            g[1] = y[1] * (y[0] - 1.0);
+        },
+    );
+    Problem::new(system, [0.9, 0.9], (0.0, 50.0)).unwrap()
+}
+
+/// 200 evenly spaced outputs do not pick the step: the tolerance does (with every output a
+/// meeting point of the checking runs, h was a sixth of the spacing at 1e-8 and 1e-10 alike,
+/// and the two runs were bit-identical). Each answer is within its tolerance of a reference.
+#[test]
+#[ignore = "target not met: output times are still meeting points of the checking runs (off the grid they would cost steps wherever the Hermite estimate is too large, as on oscillations at h*omega ~ 1)"]
+fn output_times_do_not_pick_the_step() {
+    let problem = lotka_volterra();
+    let times = linspace(0.0, 50.0, 200);
+    let reference = problem
+        .solve(&Options::fixed(8, 50.0 / 20_000.0).t_eval(times.clone()))
+        .unwrap();
+    let mut steps = Vec::new();
+    for tol in [1e-8, 1e-10] {
+        let sol = problem
+            .solve(&Options::tolerance(tol).t_eval(times.clone()))
+            .unwrap();
+        let err = sol
+            .y
+            .iter()
+            .zip(&reference.y)
+            .flat_map(|(a, b)| {
+                a.iter()
+                    .zip(b)
+                    .map(|(x, y)| (x - y).abs() / (tol * (1.0 + y.abs())))
+            })
+            .fold(0.0, f64::max);
+        eprintln!(
+            "tol {tol:e}: EC{}P h = {:.4e}, {} steps, error {err:.3e} of the tolerance",
+            sol.r, sol.h, sol.stats.steps
+        );
+        assert!(err <= 1.0, "tol {tol:e}: error {err} times the tolerance");
+        steps.push((sol.r, sol.stats.steps));
+    }
+    assert_ne!(steps[0], steps[1], "the same run at 1e-8 and 1e-10");
+}
+
+/// `Solution::at` between grid points of a verified solve reads the grid's Hermite interpolant
+/// where the grid resolves the solution (here Lotka–Volterra at 1e-8 with EC2P, h = 0.025):
+/// no step of the method for nearly all calls (each call stepped from the grid point before
+/// with a φ-bank of its own), within the tolerance of a reference. (With the order `solve`
+/// picks, EC5P at h = 0.49, the grid does not resolve it: the interpolant's estimate is 40 to
+/// 1e4 tolerances and `at` steps.)
+#[test]
+fn at_between_grid_points_takes_no_steps() {
+    let problem = lotka_volterra();
+    let tol = 1e-8;
+    let sol = problem
+        .solve(
+            &Options::tolerance(tol)
+                .method(ecr::runtime::solve::Method::Order(2))
+                .dense_output(),
+        )
+        .unwrap();
+    let mut times: Vec<f64> = (0..1000)
+        .map(|k| 50.0 * ((k as f64 * 0.618_033_988_749_895) % 1.0))
+        .collect();
+    times.sort_by(f64::total_cmp);
+    let reference = problem
+        .solve(&Options::fixed(8, 50.0 / 20_000.0).t_eval(times.clone()))
+        .unwrap();
+    let mut worst = 0.0_f64;
+    for (t, exact) in times.iter().zip(&reference.y) {
+        let y = sol.at(*t).unwrap();
+        for (a, b) in y.iter().zip(exact) {
+            worst = worst.max((a - b).abs() / (tol * (1.0 + b.abs())));
+        }
+    }
+    let (steps, g) = sol.dense_evaluations();
+    eprintln!("at(): worst error {worst:.3e} of the tolerance, {steps} steps, {g} g");
+    assert!(worst <= 1.0, "error {worst} times the tolerance");
+    assert!(steps <= 100, "{steps} steps of the method for 1000 calls");
+}
+
+/// 10⁴ unevenly spaced output times cost little more than the solve without them (each took
+/// a step with its own φ-bank: 478× the run with a fixed step, 592× with a tolerance).
+#[test]
+#[ignore = "target not met: 14.5x the g-evaluations of the solve without output times (Duffing omega = 20: the Hermite estimate is over a quarter of the tolerance at h*omega ~ 1, and each output steps)"]
+fn many_output_times_cost_little() {
+    let d = Duffing::new(20.0, 0.07).unwrap();
+    let problem = Problem::new(d.system().unwrap(), d.initial_value(), (0.0, 100.0)).unwrap();
+    let options = || Options::tolerance(1e-8);
+    let plain = problem.solve(&options()).unwrap();
+    let mut sorted: Vec<f64> = (0..10_000)
+        .map(|k| 100.0 * ((k as f64 * 0.618_033_988_749_895) % 1.0))
+        .collect();
+    sorted.sort_by(f64::total_cmp);
+    let with = problem.solve(&options().t_eval(sorted)).unwrap();
+    let (a, b) = (plain.stats.total_g_evals(), with.stats.total_g_evals());
+    eprintln!(
+        "g evaluations: {a} without output times, {b} with 10^4 ({:.2}x)",
+        b as f64 / a as f64
+    );
+    assert!(b as f64 <= 1.5 * a as f64, "{b} against {a}");
 }

@@ -4,7 +4,8 @@
 use std::sync::Arc;
 
 use super::estimate::{
-    Profile, TARGET, at_most, divisor, estimate, project, project_noise, quantile, rescale,
+    Profile, TARGET, at_most, divisor, estimate, project, project_noise, project_steep, quantile,
+    rescale,
 };
 use super::grid::{fit_grid, quantum};
 use super::kept::{Kept, Observer, discard, ensure_output_fits, finish};
@@ -358,6 +359,8 @@ impl<S: System> Problem<S> {
             // This attempt runs to the end of the span whatever its estimate, to measure the
             // rounding there.
             let mut scouting = false;
+            // The largest output estimate of the chunks a scouting attempt kept regardless.
+            let mut scout_worst = 0.0_f64;
             let mut controlled = 0.0_f64;
             let mut chunk_share = FIRST_CHUNK_SHARE;
             let mut retries = 0;
@@ -367,8 +370,8 @@ impl<S: System> Problem<S> {
             while runs.n < runs.grid.n_end && !kept.ended() {
                 let ck: Checkpoint = runs.checkpoint();
                 let block = MEET as f64 * runs.grid.h;
-                let unit = quantum.map_or(1, |q| (q / block).round().max(1.0) as usize);
                 let blocks = ((chunk_share * span / block).ceil() as usize).max(1);
+                let unit = quantum.map_or(1, |q| (q / block).round().max(1.0) as usize);
                 let n_stop = runs.n + MEET * blocks.div_ceil(unit) * unit;
                 let h = runs.grid.h;
                 // The chunk's verdict: kept, or again with a smaller step (and why).
@@ -384,6 +387,8 @@ impl<S: System> Problem<S> {
                             _ => 1,
                         };
                         failed_at = Some(f.t);
+                        // A step that failed is never tried again (no step up to it).
+                        h_fail = h_fail.min(h);
                         let which = match f.which {
                             Which::Fine => "returned",
                             Which::Coarse => "2h checking",
@@ -433,7 +438,9 @@ impl<S: System> Problem<S> {
                         // asymptotic (a low order at this step is the checking runs leaving
                         // that regime: the answer's error is far below the estimate).
                         let q = order.unwrap_or(p).max(asymptotic.0).clamp(0.5 * p, p);
-                        let est = |pt: &Point| estimate(pt.diff, pt.noise, div);
+                        // As the kept solution will report it: with the interpolation's own
+                        // estimate at outputs between grid points.
+                        let est = |pt: &Point| estimate(pt.diff, pt.noise, div) + pt.interp;
                         let worst_out = chunk
                             .outputs
                             .iter()
@@ -481,11 +488,13 @@ impl<S: System> Problem<S> {
                             .iter()
                             .filter(|pr| pr.points.last().is_some_and(|l| l.0 > elapsed))
                             .map(|pr| {
-                                // At least order r (half the nominal), the least the pilot
-                                // accepts, also where that attempt showed none (its checking
-                                // runs outside their asymptotic regime say nothing of it).
+                                // The order that attempt showed where it was asymptotic (at
+                                // least r, the least the pilot accepts); the nominal 2r where
+                                // it showed none or less: runs outside their asymptotic regime
+                                // say only that their step was too large, not by how much.
+                                let q = pr.order.filter(|&q| q >= 0.5 * p).unwrap_or(p);
                                 let scaled = Profile {
-                                    order: Some(pr.order.unwrap_or(0.5 * p).max(0.5 * p)),
+                                    order: Some(q),
                                     ..pr.clone()
                                 };
                                 scaled.predict(h, p, span)
@@ -519,7 +528,7 @@ impl<S: System> Problem<S> {
                         } else {
                             walk
                         };
-                        let steep = project(&noise_history, span);
+                        let steep = project_steep(&noise_history, span);
                         // Over (or projected over) while the differences between the runs are
                         // at the level of the rounding: no step size helps. Where only the
                         // projection of the rounding says so, the attempt goes on to the end
@@ -543,6 +552,7 @@ impl<S: System> Problem<S> {
                             scouting = true;
                         }
                         if scouting && !at_end {
+                            scout_worst = scout_worst.max(worst_out);
                             kept.keep(chunk, Some(div), h)?;
                             controlled = now;
                             chunk_share = (2.0 * chunk_share).min(LAST_CHUNK_SHARE);
@@ -551,7 +561,24 @@ impl<S: System> Problem<S> {
                         if scouting && at_end {
                             measured_floor = Some((noise, runs.grid.n_end));
                         }
-                        if (over || projected > 1.0) && (at_floor || (at_end && noise > 0.5)) {
+                        // A scouting attempt kept its chunks whatever their estimates: it is
+                        // over if any of them was (NaN included).
+                        let (worst_out, over) = if scouting && at_end {
+                            let w = if scout_worst.is_nan() {
+                                scout_worst
+                            } else {
+                                worst_out.max(scout_worst)
+                            };
+                            (w, !at_most(w, 1.0))
+                        } else {
+                            (worst_out, over)
+                        };
+                        // Nor is it at the floor where its chunks were over by more than the
+                        // rounding.
+                        let at_floor = at_floor && floor >= 0.5 * worst_out;
+                        // At the end of the span the rounding is measured, not projected: over
+                        // the tolerance by itself, no step verifies the answer.
+                        if (over || projected > 1.0) && (at_floor || (at_end && noise > 1.0)) {
                             discard(&mut stats, &chunk.cost);
                             let steps = runs.total;
                             runs.restore(&ck)?;
@@ -595,7 +622,11 @@ impl<S: System> Problem<S> {
                                 })
                                 .find_map(|pr| {
                                     pr.at(elapsed)
-                                        .filter(|&e| now_here > 1.0 && now_here >= 0.5 * e)
+                                        // Over the tolerance with both steps: a larger
+                                        // step that met it here says the step can.
+                                        .filter(|&e| {
+                                            now_here > 1.0 && e > 1.0 && now_here >= 0.5 * e
+                                        })
                                         .map(|e| (pr.h, e))
                                 });
                             if let Some((h_prev, e_prev)) = stalled {

@@ -107,9 +107,12 @@ pub(super) fn quantile(xs: &mut [f64], level: f64) -> f64 {
 
 /// The largest estimate at the end of the span, from its growth so far: E(τ) ∝ τ^α, α from
 /// the last point and the one nearest half its time (within [0, 2]; ½ — between a bounded
-/// error and a linearly growing one — with too little history). Where the estimate grew faster
-/// than τ² over the last stretch (an instability, chaos: errors that grow exponentially), it
-/// grows on at that exponential rate instead.
+/// error and a linearly growing one — with too little history).
+///
+/// A truncation error that grows exponentially for a while (near an unstable equilibrium, at
+/// a close passage) usually stops growing so; projecting that rate over the whole span asks
+/// for steps so small that the runs differ by rounding only. The power law is followed
+/// instead, and the chunks that come check it.
 pub(super) fn project(history: &[(f64, f64)], span: f64) -> f64 {
     let Some(&(tk, ek)) = history.last() else {
         return 0.0;
@@ -122,9 +125,18 @@ pub(super) fn project(history: &[(f64, f64)], span: f64) -> f64 {
     let alpha = half.map_or(0.5, |&(t, e)| {
         ((ek / e).ln() / (tk / t).ln()).clamp(0.0, 2.0)
     });
-    let power = ek * (span / tk).powf(alpha);
-    // The last stretch: exponential growth where it is steeper than τ².
+    ek * (span / tk).powf(alpha)
+}
+
+/// As [`project`], but where the last stretch grew faster than τ² (rounding amplified by an
+/// instability or chaos) at that exponential rate: whether the rounding may reach the
+/// tolerance, which the solve then measures by running on to the end of the span once.
+pub(super) fn project_steep(history: &[(f64, f64)], span: f64) -> f64 {
+    let power = project(history, span);
     let n = history.len();
+    let Some(&(tk, ek)) = history.last() else {
+        return power;
+    };
     let steep = (n >= 2)
         .then(|| history[n - 2])
         .filter(|&(t, e)| e > 0.0 && t > 0.0 && tk > t && ek > e * (tk / t).powi(2))

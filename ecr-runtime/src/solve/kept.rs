@@ -9,6 +9,7 @@ use super::options::Options;
 use super::run::{Chunk, Cost, Point};
 use super::solution::{DenseData, Segment, Solution, Stats, Status, StepView};
 use crate::error::{Error, Result};
+use crate::operator::LinearOperator;
 use crate::storage::format_bytes;
 use crate::system::System;
 
@@ -133,7 +134,8 @@ fn reserve<T>(v: &mut Vec<T>, n: usize, d: usize) -> Result<()> {
 }
 
 /// `Err` naming the size if the output of a run cannot be stored: `outputs` output states,
-/// `grid` grid points kept for dense output (two states each), `observed` states held for the
+/// `grid` grid points kept for dense output (three states each: the answer, the 2h run and the
+/// derivative), `observed` states held for the
 /// observer at once, of `d` numbers each (and what each entry costs besides: its vectors'
 /// headers and the allocator's, its time, energy and estimate). Checked before the run, so
 /// that it fails with this error rather than aborting on an allocation midway.
@@ -145,7 +147,7 @@ pub(super) fn ensure_output_fits(
 ) -> Result<()> {
     let per_state = d.saturating_add(9);
     let entries = outputs
-        .saturating_add(grid.saturating_mul(2))
+        .saturating_add(grid.saturating_mul(3))
         .saturating_add(observed)
         .checked_mul(per_state);
     crate::storage::ensure_allocatable(
@@ -224,7 +226,24 @@ impl<S: System> Problem<S> {
                 fine.extend_from_slice(f);
                 coarse.extend_from_slice(&c[..d.min(c.len())]);
             }
+            // For a verified solve: each grid point's derivative (for the Hermite interpolant
+            // of `Solution::at`) and its estimate (the scaled difference to the 2h run).
+            let (mut deriv, mut grid_est) = (Vec::new(), Vec::new());
+            if let (true, Some(div)) = (verified, div) {
+                let system = &*self.system;
+                let (mut f, mut g) = (vec![0.0; d], vec![0.0; d]);
+                let mut scratch = vec![0.0; system.scratch_len()];
+                for (_, y, c) in &kept.grid {
+                    system.linear().apply(y, &mut f);
+                    system.nonlinear(y, &mut g, &mut scratch);
+                    deriv.extend(f.iter().zip(&g).map(|(a, b)| a + b));
+                    let e = options.scaled(y.iter().zip(c.iter()).map(|(a, b)| (a - b) / div), y);
+                    grid_est.push(e);
+                }
+            }
             DenseData {
+                deriv,
+                grid_est,
                 system: std::sync::Arc::clone(&self.system),
                 r,
                 settings: options.settings,

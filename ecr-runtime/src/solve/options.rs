@@ -135,7 +135,8 @@ impl Options {
         self
     }
 
-    /// Output at these times (ascending, within the time span) instead of at every step.
+    /// Output at these times (ascending, within the time span) instead of at every point where
+    /// the error is verified (every second step of the run; every step for a fixed method).
     #[must_use]
     pub fn t_eval(mut self, times: impl IntoIterator<Item = f64>) -> Self {
         self.t_eval = Some(times.into_iter().collect());

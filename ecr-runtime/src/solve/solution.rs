@@ -173,6 +173,76 @@ pub(super) struct DenseData<S> {
     pub(super) divisor: f64,
     /// Steps taken by [`Solution::at`] and their evaluations of g.
     pub(super) evals: Cell<(usize, usize)>,
+    /// For a verified solve: y' = Ay + g(y) at `t` (flat), for Hermite interpolation.
+    pub(super) deriv: Vec<f64>,
+    /// For a verified solve: the estimate at each grid point (tolerance units).
+    pub(super) grid_est: Vec<f64>,
+}
+
+impl<S> DenseData<S> {
+    /// The Hermite interpolant of the grid at `t` (between points `k` and `k + 1`) into `out`,
+    /// and its estimate in tolerance units: the difference to the interpolant on the stencil
+    /// shifted by one point (each way, where it exists) plus the larger estimate of the two
+    /// grid points around t. `None` where the grid is too short to check an interpolant.
+    fn hermite(&self, k: usize, t: f64, out: &mut [f64]) -> Option<f64> {
+        const MAX: usize = 16;
+        let n = self.t.len();
+        let d = out.len();
+        if self.deriv.len() != n * d || self.grid_est.len() != n || n < 3 || k + 1 >= n {
+            return None;
+        }
+        let width = super::trail::stencil_width(self.r).min(n - 1).min(MAX);
+        let first = super::hermite::stencil(k, n - 1, width);
+        let h = self.t[k + 1] - self.t[k];
+        if h <= 0.0 {
+            return None;
+        }
+        let tc = self.t[k];
+        let x = (t - tc) / h;
+        let eval = |first: usize, out: &mut [f64]| {
+            let (mut xs, mut a, mut b) = ([0.0; MAX], [0.0; MAX], [0.0; MAX]);
+            for (j, xj) in xs[..width].iter_mut().enumerate() {
+                *xj = (self.t[first + j] - tc) / h;
+            }
+            super::hermite::weights(&xs[..width], x, &mut a[..width], &mut b[..width]);
+            out.fill(0.0);
+            for j in 0..width {
+                let p = (first + j) * d;
+                let (aj, bj) = (a[j], h * b[j]);
+                let (y, f) = (&self.fine[p..p + d], &self.deriv[p..p + d]);
+                for ((o, yv), fv) in out.iter_mut().zip(y).zip(f) {
+                    *o += aj * yv + bj * fv;
+                }
+            }
+        };
+        eval(first, out);
+        let later = (first + width < n).then_some(first + 1);
+        let earlier = first.checked_sub(1);
+        if later.is_none() && earlier.is_none() {
+            return None;
+        }
+        let (rtol, atol) = self.tolerance;
+        // The second interpolant: on the stack for a small system (no allocation per call).
+        let mut stack = [0.0; MAX];
+        let mut heap = Vec::new();
+        let other: &mut [f64] = if d <= MAX {
+            &mut stack[..d]
+        } else {
+            heap.resize(d, 0.0);
+            &mut heap
+        };
+        let mut interp = 0.0_f64;
+        for f0 in later.into_iter().chain(earlier) {
+            eval(f0, other);
+            let e = other
+                .iter()
+                .zip(out.iter())
+                .map(|(o, v)| (o - v).abs() / (atol + rtol * v.abs()))
+                .fold(0.0, |m: f64, e| if e > m || e.is_nan() { e } else { m });
+            interp = if e.is_nan() { e } else { interp.max(e) };
+        }
+        Some(interp + self.grid_est[k].max(self.grid_est[k + 1]))
+    }
 }
 
 impl<S> Clone for DenseData<S> {
@@ -188,6 +258,8 @@ impl<S> Clone for DenseData<S> {
             coarse: self.coarse.clone(),
             divisor: self.divisor,
             evals: self.evals.clone(),
+            deriv: self.deriv.clone(),
+            grid_est: self.grid_est.clone(),
         }
     }
 }
@@ -282,11 +354,13 @@ impl<S> Solution<S> {
 }
 
 impl<S: System> Solution<S> {
-    /// The solution at any time of the integrated span (needs
-    /// [`Options::dense_output`](super::Options::dense_output)): the grid value on the grid,
-    /// else the run's method stepped from the grid point before t (two steps of half the
-    /// distance; for a verified solve the checking run's value there too, one step, gives the
-    /// estimate).
+    /// The solution at any time of the integrated span, up to where the solution's times end
+    /// (needs [`Options::dense_output`](super::Options::dense_output)): the grid value on the
+    /// grid; for a verified solve, the Hermite interpolant of the grid states and their
+    /// derivatives around t where its estimate (the difference to the interpolant on the
+    /// shifted stencil, plus the grid points' estimates) is within the tolerance; else the
+    /// run's method stepped from the grid point before t (two steps of half the distance; for
+    /// a verified solve the checking run's value there too, one step, gives the estimate).
     ///
     /// # Errors
     /// [`Error::InvalidInput`] without dense output or for t outside the integrated span,
@@ -343,6 +417,13 @@ impl<S: System> Solution<S> {
             // nothing): the grid state moved along the vector field.
             out.copy_from_slice(fine);
             return super::run::drift(&*dense.system, out, dt);
+        }
+        // A verified solve: the grid's Hermite interpolant where its estimate is within the
+        // tolerance (no step, no φ-bank); else the method's steps below.
+        if let Some(e) = dense.hermite(k, t, out) {
+            if e <= 1.0 {
+                return Ok(());
+            }
         }
         let cache = std::sync::Arc::new(super::SolveCache::<S>::new(2));
         let mut step = DenseStep::new(&*dense.system, dense.r, dense.settings, &cache);
