@@ -203,12 +203,16 @@ fn failed_commit_keeps_the_new_files_and_names_them() {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
+    // Until the run writes its first file into the staging directory: then it is past the
+    // checks of the parent (a staging directory alone can appear just before them, and a
+    // parent turned read-only then is refused before any work, with nothing to keep).
     let deadline = Instant::now() + Duration::from_secs(20);
     while !entries(&root.0)
         .iter()
-        .any(|e| e.starts_with(".out.ecr-new-"))
+        .filter(|e| e.starts_with(".out.ecr-new-"))
+        .any(|e| std::fs::read_dir(root.0.join(e)).is_ok_and(|mut d| d.next().is_some()))
     {
-        assert!(Instant::now() < deadline, "no staging directory appeared");
+        assert!(Instant::now() < deadline, "no staged file appeared");
         std::thread::sleep(Duration::from_millis(1));
     }
     let pid = child.id().to_string();
