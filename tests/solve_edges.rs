@@ -103,17 +103,14 @@ fn a_fixed_step_beyond_the_span_is_one_step() {
     assert!((y[0] - exact[0]).abs() < 1e-6, "{y:?} vs {exact:?}");
 }
 
-/// Output at every step of 10⁸ steps does not fit in 2 GB of address space: an error that
-/// names the size, not an abort. Runs the solve in a child process of this test binary under
-/// `ulimit -v`.
-#[test]
-fn output_beyond_memory_is_an_error() {
+/// Runs the ignored test `child` of this binary under `ulimit -v kib`: it must succeed and say
+/// on stderr that the solution's output would not fit.
+fn child_refuses_the_output(kib: u64, child: &str) {
     let exe = std::env::current_exe().unwrap();
     let out = Command::new("sh")
         .arg("-c")
         .arg(format!(
-            "ulimit -v 2000000 && exec '{}' --exact output_beyond_memory_child --ignored \
-             --nocapture --test-threads 1",
+            "ulimit -v {kib} && exec '{}' --exact {child} --ignored --nocapture --test-threads 1",
             exe.display()
         ))
         .output()
@@ -126,6 +123,14 @@ fn output_beyond_memory_is_an_error() {
         out.status
     );
     assert!(stderr.contains("the solution's output"), "{stderr}");
+}
+
+/// Output at every step of 10⁸ steps does not fit in 2 GB of address space: an error that
+/// names the size, not an abort. Runs the solve in a child process of this test binary under
+/// `ulimit -v`.
+#[test]
+fn output_beyond_memory_is_an_error() {
+    child_refuses_the_output(2_000_000, "output_beyond_memory_child");
 }
 
 #[test]
@@ -145,23 +150,7 @@ fn output_beyond_memory_child() {
 /// allocation of 805306368 bytes failed": the fixed path had no size check).
 #[test]
 fn fixed_output_beyond_memory_is_an_error() {
-    let exe = std::env::current_exe().unwrap();
-    let out = Command::new("sh")
-        .arg("-c")
-        .arg(format!(
-            "ulimit -v 800000 && exec '{}' --exact fixed_output_beyond_memory_child --ignored \
-             --nocapture --test-threads 1",
-            exe.display()
-        ))
-        .output()
-        .expect("sh runs");
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        out.status.success(),
-        "the child failed ({:?}): {stderr}",
-        out.status
-    );
-    assert!(stderr.contains("the solution's output"), "{stderr}");
+    child_refuses_the_output(800_000, "fixed_output_beyond_memory_child");
 }
 
 #[test]
