@@ -77,10 +77,17 @@ pub use ecr_runtime::nalgebra;
 pub use ecr_runtime::prelude;
 pub use ecr_runtime::solve::{Options, Problem, Solution};
 
-// The README's examples run as doctests.
+// The README's examples run as doctests, and so do the Rust blocks of the guides that have
+// any (the others' indented blocks are formulas, not code).
 #[doc = include_str!("../README.md")]
 #[cfg(doctest)]
 pub struct ReadmeDoctests;
+#[doc = include_str!("../docs/ensembles.md")]
+#[cfg(doctest)]
+pub struct EnsemblesDoctests;
+#[doc = include_str!("../docs/cli.md")]
+#[cfg(doctest)]
+pub struct CliDoctests;
 
 /// The repository's guides (`docs/*.md`) as pages of this documentation: the same text.
 ///
