@@ -27,10 +27,9 @@ use clap::{Args, Subcommand, ValueEnum};
 use ecr::problems::{Duffing, DuffingSystem, HenonHeiles, HenonHeilesSystem};
 use ecr_runtime::ensemble::{Control, Ensemble, MemberError, MemberResult};
 use ecr_runtime::solve::{Options, Problem, Solution, linspace};
-use std::io::{IsTerminal, Write};
+use std::io::Write;
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
-use std::sync::Once;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
@@ -538,41 +537,15 @@ fn row(plan: &Plan, fixed: bool, m: &MemberResult<Kept>) -> String {
 static DONE: AtomicUsize = AtomicUsize::new(0);
 static TOTAL: AtomicUsize = AtomicUsize::new(0);
 
-/// On SIGINT or SIGTERM: one line on stderr, exit status 130 or 143, no table (it is written
-/// only at the end, atomically). The signals are received on a thread of their own
-/// (signal-hook's iterator), where printing is safe.
+/// On SIGINT or SIGTERM: one line on stderr saying how far the run got, exit status 130 or
+/// 143, no table (it is written only at the end, atomically).
 fn report_interrupts() {
-    use signal_hook::consts::{SIGINT, SIGTERM};
-    static ONCE: Once = Once::new();
-    ONCE.call_once(|| {
-        // If the handlers cannot be installed, the signals keep their default behaviour.
-        let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM]) else {
-            return;
-        };
-        let _ = std::thread::Builder::new()
-            .name("ecr-signals".into())
-            .spawn(move || {
-                let Some(signal) = signals.forever().next() else {
-                    return;
-                };
-                let (what, status) = if signal == SIGTERM {
-                    ("terminated (SIGTERM)", 128 + SIGTERM)
-                } else {
-                    ("interrupted", 128 + SIGINT)
-                };
-                let newline = if std::io::stderr().is_terminal() {
-                    "\n"
-                } else {
-                    ""
-                };
-                let _ = writeln!(
-                    std::io::stderr(),
-                    "{newline}error: {what} after {} of {} members; no table written",
-                    DONE.load(Ordering::Relaxed),
-                    TOTAL.load(Ordering::Relaxed)
-                );
-                std::process::exit(status);
-            });
+    super::interrupt::on_interrupt(|what| {
+        format!(
+            "{what} after {} of {} members; no table written",
+            DONE.load(Ordering::Relaxed),
+            TOTAL.load(Ordering::Relaxed)
+        )
     });
 }
 

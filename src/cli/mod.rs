@@ -2,6 +2,7 @@
 
 mod bench;
 mod ensemble;
+mod interrupt;
 mod memory;
 mod output;
 mod progress;

@@ -11,8 +11,7 @@ use ecr_runtime::stepper::{
 };
 use ecr_runtime::system::System;
 use serde_json::{Value, json};
-use std::io::{IsTerminal, Write};
-use std::sync::Once;
+use std::io::Write;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
@@ -237,51 +236,17 @@ static PROGRESS: Progress = Progress {
 };
 
 /// On SIGINT (Ctrl-C) or SIGTERM: one line on stderr saying where the run got to, exit
-/// status 130 or 143 (the shell's 128 + the signal's number). Installed once per process; the
-/// signals are received on a thread of their own (signal-hook's iterator), where printing is
-/// safe.
+/// status 130 or 143 (the shell's 128 + the signal's number).
 fn report_interrupts() {
-    use signal_hook::consts::{SIGINT, SIGTERM};
-    static ONCE: Once = Once::new();
-    ONCE.call_once(|| {
-        // If the handlers cannot be installed, the signals keep their default behaviour.
-        let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM]) else {
-            return;
-        };
-        let _ = std::thread::Builder::new()
-            .name("ecr-signals".into())
-            .spawn(move || {
-                let Some(signal) = signals.forever().next() else {
-                    return;
-                };
-                let (what, status) = if signal == SIGTERM {
-                    ("terminated (SIGTERM)", 128 + SIGTERM)
-                } else {
-                    ("interrupted", 128 + SIGINT)
-                };
-                let t = f64::from_bits(PROGRESS.t_bits.load(Ordering::Relaxed));
-                let steps = PROGRESS.steps.load(Ordering::Relaxed);
-                let total = PROGRESS.total.load(Ordering::Relaxed);
-                let newline = if std::io::stderr().is_terminal() {
-                    "\n"
-                } else {
-                    ""
-                };
-                // A full or closed stderr loses the line, not the status.
-                let _ = if total == u64::MAX {
-                    writeln!(
-                        std::io::stderr(),
-                        "{newline}error: {what} during the solve; no report written"
-                    )
-                } else {
-                    writeln!(
-                        std::io::stderr(),
-                        "{newline}error: {what} at t = {t} after {steps} of {total} steps; \
-                         no report written"
-                    )
-                };
-                std::process::exit(status);
-            });
+    super::interrupt::on_interrupt(|what| {
+        let t = f64::from_bits(PROGRESS.t_bits.load(Ordering::Relaxed));
+        let steps = PROGRESS.steps.load(Ordering::Relaxed);
+        let total = PROGRESS.total.load(Ordering::Relaxed);
+        if total == u64::MAX {
+            format!("{what} during the solve; no report written")
+        } else {
+            format!("{what} at t = {t} after {steps} of {total} steps; no report written")
+        }
     });
 }
 
