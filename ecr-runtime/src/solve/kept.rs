@@ -178,7 +178,7 @@ impl<S: System> Problem<S> {
         &self,
         options: &Options,
         kept: Kept,
-        stats: Stats,
+        mut stats: Stats,
         r: usize,
         div: Option<f64>,
         order: Option<f64>,
@@ -236,6 +236,8 @@ impl<S: System> Problem<S> {
                 for (_, y, c) in &kept.grid {
                     system.linear().apply(y, &mut f);
                     system.nonlinear(y, &mut g, &mut scratch);
+                    // Counted with the output between grid points, which they serve.
+                    stats.dense_g_evals += 1;
                     deriv.extend(f.iter().zip(&g).map(|(a, b)| a + b));
                     let e = options.scaled(y.iter().zip(c.iter()).map(|(a, b)| (a - b) / div), y);
                     grid_est.push(e);

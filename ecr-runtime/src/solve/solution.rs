@@ -80,7 +80,8 @@ pub struct Stats {
     pub retries: usize,
     /// Steps taken to evaluate the solution between grid points (output times, events).
     pub dense_evals: usize,
-    /// Evaluations of g in those steps.
+    /// Evaluations of g in those steps, and (with dense output of a verified solve) one per
+    /// stored grid point for the derivatives of [`Solution::at`]'s interpolant.
     pub dense_g_evals: usize,
 }
 
