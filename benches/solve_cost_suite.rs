@@ -26,7 +26,7 @@
 //! same for `solve` and the fixed runs. Nothing is reused from one call to the next: each
 //! builds its system and problem.
 
-#[path = "../tests/common_suite/mod.rs"]
+#[path = "../tests/it/common_suite/mod.rs"]
 mod common_suite;
 
 use std::collections::BTreeMap;

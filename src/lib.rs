@@ -77,23 +77,11 @@ pub use ecr_runtime::nalgebra;
 pub use ecr_runtime::prelude;
 pub use ecr_runtime::solve::{Options, Problem, Solution};
 
-// The README's examples run as doctests, and so do the Rust blocks of the guides that have
-// any (the others' indented blocks are formulas, not code).
-#[doc = include_str!("../README.md")]
-#[cfg(doctest)]
-pub struct ReadmeDoctests;
-#[doc = include_str!("../docs/ensembles.md")]
-#[cfg(doctest)]
-pub struct EnsemblesDoctests;
-#[doc = include_str!("../docs/cli.md")]
-#[cfg(doctest)]
-pub struct CliDoctests;
-
 /// The repository's guides (`docs/*.md`) as pages of this documentation: the same text.
 ///
-/// Their code blocks are sketches, not doctests; the README's examples are compiled as
-/// doctests, and the programs the guides describe are compiled and run by the `downstream`
-/// crate's tests.
+/// Their Rust blocks, and the README's, are whole programs: the `downstream` crate's tests
+/// compile them verbatim as a user's crate that depends on `ecr` without default features, and
+/// run them; the programs the guides describe are written out and checked there too.
 #[cfg(not(doctest))]
 #[allow(clippy::doc_lazy_continuation, clippy::doc_overindented_list_items)]
 #[allow(

@@ -6,6 +6,7 @@
 //! under CI (`CI` set), where it fails: CI installs MPI and must run this test for real. Run
 //! it with `cargo test -p ecr --features mpi --test cli_ensemble_mpi`.
 
+#[path = "it/common/mod.rs"]
 mod common;
 
 use common::{TempDir, ecr, is_root};

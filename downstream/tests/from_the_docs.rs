@@ -1,13 +1,38 @@
-//! Programs a user writes from the README and docs/solve.md, with nothing but the prelude:
-//! they must compile as written there, and give what the documents promise (a solution
+//! Programs a user writes from the README and docs/, with nothing but the prelude: the
+//! documents' own Rust blocks and the examples the README names, verbatim (module
+//! [`verbatim`]), and programs written from their text. They must compile as written there,
+//! with the README's dependency line, and give what the documents promise (a solution
 //! within its tolerance, energy kept, a Lyapunov function that decreases).
 //!
 //! Tolerances: `solve` promises an *estimated* global error within the tolerance; the
 //! checks against exact or reference solutions allow 10 times the tolerance (the bound the
-//! repository's own sweep, `tests/solve.rs`, holds it to), per component in the solver's
+//! repository's own sweep, `tests/it/solve.rs`, holds it to), per component in the solver's
 //! norm |e_i| ≤ atol + rtol |y_i|.
 use ecr::prelude::*;
 use std::f64::consts::PI;
+
+/// The Rust blocks of README.md and docs/*.md, verbatim, and the examples the README names:
+/// modules written by this crate's build script, each with a test that runs its `main`.
+mod verbatim {
+    include!(concat!(env!("OUT_DIR"), "/from_the_docs.rs"));
+}
+
+/// What a program's `main` returns: nothing, or a `Result` that must be `Ok`.
+trait Outcome {
+    fn check(self);
+}
+
+impl Outcome for () {
+    fn check(self) {}
+}
+
+impl<E: std::fmt::Debug> Outcome for std::result::Result<(), E> {
+    fn check(self) {
+        if let Err(e) = self {
+            panic!("main returned an error: {e:?}");
+        }
+    }
+}
 
 /// Largest |a_i − b_i| / (tol (1 + |b_i|)): the error in units of the tolerance.
 fn in_tolerance_units(a: &[f64], b: &[f64], tol: f64) -> f64 {

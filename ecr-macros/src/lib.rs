@@ -13,7 +13,7 @@
 //!
 //! (Not compiled here: the emitted code calls `ecr-runtime`, which depends on this crate, so
 //! this crate cannot have it as a dev-dependency. The same program is compiled and run by
-//! `tests/macro_quick_start.rs` at the top of the workspace.)
+//! `tests/it/macro_quick_start.rs` at the top of the workspace.)
 //!
 //! ```ignore
 //! use ecr_runtime::ecr_method;

@@ -21,7 +21,7 @@
 //! (`y₁ = e^{hA}y`); classical order 4 (it does not satisfy all stiff order conditions of
 //! Hochbruck–Ostermann 2005, so the order may drop for stiff problems with non-smooth data).
 //!
-//! It conserves nothing exactly. Measured (`tests/baselines_peers.rs`): on Duffing (ω = 1,
+//! It conserves nothing exactly. Measured (`tests/it/baselines_peers.rs`): on Duffing (ω = 1,
 //! k = 0.9, h = 0.1, 1e5 steps) the energy error grows linearly in time, 3.1e−8 per unit time
 //! to 3.1e−4 at t = 1e4 (the symplectic splittings of orders 2 and 4 stay bounded at 1.3e−3
 //! and 1.9e−5 on the same run); on the NLS (N = 32, h = 0.01, 1e4 steps) the mass drifts by a

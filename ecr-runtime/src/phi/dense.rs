@@ -131,7 +131,7 @@ pub(crate) fn overflow_cause(norm: f64) -> String {
 ///
 /// Cost: about `m + s(p + 2)` matrix products. The normwise relative error is of the order
 /// of the condition number of the φ-functions times the unit roundoff; for `‖A‖` up to `1e8`
-/// no NaN appears (tests/phi.rs).
+/// no NaN appears (tests/it/phi.rs).
 ///
 /// # Errors
 /// [`Error::NotSquare`], [`Error::NonFinite`] for NaN/∞ entries, [`Error::Numerical`] if the

@@ -3,7 +3,7 @@
 /// `1/k!` for `k = 0..=32`, correctly rounded to `f64`.
 ///
 /// Generated with Python's `float(Fraction(1, factorial(k)))` (correctly rounded division of
-/// integers); tests/phi.rs checks every entry against `BigRational::to_f64`.
+/// integers); tests/it/phi.rs checks every entry against `BigRational::to_f64`.
 pub const INV_FACTORIAL: [f64; 33] = [
     1.0,                    // 1/0!
     1.0,                    // 1/1!

@@ -34,7 +34,7 @@
 //!   `ψ_l(2y) = ½ Σ_m (e^y L_lm + (−1)^{l+m} L_lm) ψ_m(y)` with `L = K(1/2)`, applied
 //!   `⌈log₂ 2|x|⌉` times from the Taylor value at `x/2^s` (at most 11 doublings for n ≤ 12).
 //!
-//! Accuracy (tests/legendre_kernels.rs, against 256-bit references): the absolute error of
+//! Accuracy (tests/it/legendre_kernels.rs, against 256-bit references): the absolute error of
 //! `Ψ_j(τ, x)` is a few units of roundoff times `φ₁(Re τx)`, the natural bound of the kernel
 //! (relative accuracy is neither available nor needed: a stage needs `Ψ_j L_j` to `ε h |g|`).
 //! Matrices ([`LegendreKernels::psi_dense`]): the same Taylor series and doubling on matrices.

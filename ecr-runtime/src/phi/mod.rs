@@ -23,7 +23,7 @@
 //!   with k). Large `Re z` is handled with a scaled exponential so that values that fit in
 //!   `f64` are returned even when `e^z` alone overflows. The relative error is ≤ 1e−14 for
 //!   k ≤ 12 and 1e−16 ≤ |z| ≤ 1e12 on the real and imaginary axes and in the complex plane away
-//!   from the zeros of φ_k; tests/phi.rs measures at most 1.7e−15 against 384-bit references.
+//!   from the zeros of φ_k; tests/it/phi.rs measures at most 1.7e−15 against 384-bit references.
 //! * Dense matrices ([`phi_dense`], [`phi_dense_static`]): scaling and modified squaring
 //!   (Skaflestad & Wright, 2009): Taylor series of all φ_k at `X = 2^{−s}A` with `‖X‖₁ ≤ 1`, then
 //!   `s` applications of the doubling formula. The exponential is carried as `E = e^X − I`

@@ -403,7 +403,7 @@ fn upward_scaled<T: Field>(z: T, out: &mut [T]) {
 ///
 /// `φ₀(z) = eᶻ` and `φ_k(z) = Σ_{n≥0} zⁿ/(n+k)!` (`docs/method.md#phi-functions`), all orders
 /// at once, with a relative error below 1e−14 for `k ≤ 12` and `1e−16 ≤ |z| ≤ 1e12` (measured
-/// in tests/phi.rs; see the module documentation for the method).
+/// in tests/it/phi.rs; see the module documentation for the method).
 ///
 /// Extremes: for large negative `z`, `e^z` underflows gracefully to 0 while `φ_k(z) ≈
 /// 1/((k−1)!|z|)`; for large positive `z` values beyond `f64::MAX` are `+∞`; `φ_k(−∞) = 0`,

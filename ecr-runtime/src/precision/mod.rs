@@ -49,7 +49,7 @@
 //! 320-bit references, relative errors of 1.1e−16 for division, 1.6e−11 for `exp`, 2e−14 for
 //! `ln` and absolute 1.6e−21 for `sin`, where this one has 1.3e−32 (division), 2e−31 (`exp`)
 //! and 1e−31 (`cos`, `sin`); their multiply–add costs the same within 10 %
-//! (`cargo test --release -p ecr-runtime --test double_double_crates -- --ignored --nocapture`).
+//! (`cargo test --release -p ecr-runtime --test it double_double_crates:: -- --ignored --nocapture`).
 
 mod kernels;
 mod real;

@@ -1,7 +1,7 @@
 //! The fixed-order steppers of `ecr_method!` in the benchmark: ECrP r = 1..6 (s = r) as a user
 //! writes them in a hot loop — `Ec{r}<_, 2>` with the linear part a `DenseStatic` 2 × 2 and g a
 //! closure (Duffing, wind), `Ec{r}Dyn<_>` with the NLS's FFT operator — with the benchmark's
-//! stage solver. Bit-identical to the run-time stepper's steps (tests/macro_stepper.rs), so
+//! stage solver. Bit-identical to the run-time stepper's steps (tests/it/macro_stepper.rs), so
 //! the two series differ only in time.
 
 use super::series::{

@@ -1,5 +1,0 @@
-use ecr::ecr_method;
-
-ecr_method!(r = 99999999999999999999999);
-
-fn main() {}

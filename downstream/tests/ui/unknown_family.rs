@@ -1,5 +1,0 @@
-use ecr::ecr_method;
-
-ecr_method!(r = 3, family = gauss);
-
-fn main() {}

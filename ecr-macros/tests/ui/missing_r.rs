@@ -1,0 +1,5 @@
+use ecr_macros::ecr_method;
+
+ecr_method!(s = 3);
+
+fn main() {}
