@@ -81,7 +81,7 @@ fn module_with_test(
     source: &str,
 ) -> io::Result<()> {
     let file = out.join(format!("{module}.rs"));
-    let test = "\n#[test]\nfn main_succeeds() {\n    crate::Outcome::check(main());\n}\n";
+    let test = "\n#[test]\n#[allow(clippy::unit_arg)]\nfn main_succeeds() {\n    crate::Outcome::check(main());\n}\n";
     fs::write(&file, format!("{source}{test}"))?;
     let path = file.display().to_string();
     writeln!(

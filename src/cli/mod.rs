@@ -28,8 +28,8 @@ pub struct Cli {
 enum Command {
     /// Regenerate the exact coefficient tables of a method (nodes, weights, moment weights).
     Tables(tables::TablesArgs),
-    /// Integrate a test problem (duffing, wind, wind-dissipative, nls, fpu) and print a JSON
-    /// report.
+    /// Integrate a test problem (duffing, wind, wind-dissipative, nls, fpu, henon-heiles) and
+    /// print a JSON report.
     ///
     /// Bad input and runtime failures (such as stage equations that do not converge) print one
     /// line starting with 'error: ' on stderr and exit with status 2.
@@ -198,6 +198,168 @@ pub fn main() -> ExitCode {
         (None, Err(UsageError(msg))) => {
             report(&msg);
             ExitCode::from(2)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Cli;
+    use clap::CommandFactory;
+    use std::collections::BTreeSet;
+
+    /// The subcommands as `ecr` names them, with their clap definitions (nested ones such as
+    /// `ensemble merge` included).
+    fn commands() -> Vec<(String, clap::Command)> {
+        fn walk(prefix: &str, cmd: &clap::Command, out: &mut Vec<(String, clap::Command)>) {
+            for sub in cmd.get_subcommands().filter(|s| s.get_name() != "help") {
+                let name = format!("{prefix}{}", sub.get_name()).trim().to_string();
+                out.push((name.clone(), sub.clone()));
+                walk(&format!("{name} "), sub, out);
+            }
+        }
+        let mut out = Vec::new();
+        walk("", &Cli::command(), &mut out);
+        out
+    }
+
+    /// The long options of a command (not --help): those `--help` lists, or with `hidden`
+    /// also the hidden ones (a former name that is refused with a line saying what to use).
+    fn options(cmd: &clap::Command, hidden: bool) -> BTreeSet<String> {
+        cmd.get_arguments()
+            .filter(|a| hidden || !a.is_hide_set())
+            .filter_map(|a| a.get_long())
+            .filter(|l| *l != "help" && *l != "version")
+            .map(|l| format!("--{l}"))
+            .collect()
+    }
+
+    /// The `--option` tokens of a text, without those of cargo commands (up to the end of their
+    /// code span or line; of `cargo run … -- ARGS` only ARGS count: `cargo run --release --
+    /// run --tol 1e-8` gives `--tol`).
+    fn tokens(text: &str) -> BTreeSet<String> {
+        let mut kept = String::new();
+        let mut rest = text;
+        while let Some(at) = rest.find("cargo ") {
+            kept.push_str(&rest[..at]);
+            let tail = &rest[at..];
+            let end = tail.find(['`', '\n']).unwrap_or(tail.len());
+            let command = &tail[..end];
+            if command.starts_with("cargo run") {
+                if let Some((_, args)) = command.split_once(" -- ") {
+                    kept.push(' ');
+                    kept.push_str(args);
+                }
+            }
+            rest = &tail[end..];
+        }
+        kept.push_str(rest);
+        let mut found = BTreeSet::new();
+        let bytes = kept.as_bytes();
+        for (at, _) in kept.match_indices("--") {
+            let before = at.checked_sub(1).map(|b| bytes[b]);
+            if before.is_some_and(|b| b.is_ascii_alphanumeric() || b == b'-') {
+                continue;
+            }
+            let name: String = kept[at + 2..]
+                .chars()
+                .take_while(|c| c.is_ascii_alphanumeric() || *c == '-')
+                .collect();
+            if name.starts_with(|c: char| c.is_ascii_lowercase()) && name != "help" {
+                found.insert(format!("--{}", name.trim_end_matches('-')));
+            }
+        }
+        found
+    }
+
+    /// The sections of docs/cli.md headed by `` `ecr NAME` ``: (NAME, text up to the next
+    /// heading of the same or a higher level).
+    fn sections(doc: &str) -> Vec<(String, String)> {
+        let mut out: Vec<(String, usize, String)> = Vec::new();
+        let mut current: Option<usize> = None;
+        for line in doc.lines() {
+            let level = line.chars().take_while(|&c| c == '#').count();
+            if level > 0 && line[level..].starts_with(' ') {
+                if current.is_some_and(|k| level <= out[k].1) {
+                    current = None;
+                }
+                let title = line[level..].trim();
+                if let Some(name) = title
+                    .strip_prefix("`ecr ")
+                    .and_then(|t| t.split_once('`'))
+                    .map(|(name, _)| name.to_string())
+                {
+                    out.push((name, level, String::new()));
+                    current = Some(out.len() - 1);
+                    continue;
+                }
+            }
+            if let Some(k) = current {
+                out[k].2.push_str(line);
+                out[k].2.push('\n');
+            }
+        }
+        out.into_iter().map(|(n, _, t)| (n, t)).collect()
+    }
+
+    /// docs/cli.md has a section for every command and names there every option the command's
+    /// `--help` lists; every option the document names anywhere is one that `ecr` has (a hidden
+    /// former name included: the docs say it is refused).
+    #[test]
+    fn docs_cli_md_and_help_name_the_same_options() {
+        let doc = include_str!("../../docs/cli.md");
+        let sections = sections(doc);
+        let mut known = BTreeSet::new();
+        for (name, cmd) in commands() {
+            let Some((_, text)) = sections.iter().find(|(n, _)| *n == name) else {
+                panic!("docs/cli.md has no section `ecr {name}`");
+            };
+            let documented = tokens(text);
+            let listed = options(&cmd, false);
+            let missing: Vec<_> = listed.difference(&documented).collect();
+            assert!(
+                missing.is_empty(),
+                "`ecr {name}`: its section of docs/cli.md does not name {missing:?}"
+            );
+            known.extend(options(&cmd, true));
+        }
+        let unknown: Vec<_> = tokens(doc)
+            .into_iter()
+            .filter(|t| !known.contains(t))
+            .collect();
+        assert!(
+            unknown.is_empty(),
+            "docs/cli.md names {unknown:?}, which no `ecr` command has"
+        );
+    }
+
+    /// Where a command's description lists the problems in parentheses, the list is the set of
+    /// values its `--problem` accepts, in the same order.
+    #[test]
+    fn problem_lists_agree_with_the_values_accepted() {
+        for (name, cmd) in commands() {
+            let Some(arg) = cmd
+                .get_arguments()
+                .find(|a| a.get_long() == Some("problem"))
+            else {
+                continue;
+            };
+            let values: Vec<String> = arg
+                .get_possible_values()
+                .iter()
+                .map(|v| v.get_name().to_string())
+                .collect();
+            let about = cmd.get_about().map(|a| a.to_string()).unwrap_or_default();
+            let listed = about
+                .split_once('(')
+                .and_then(|(_, rest)| rest.split_once(')'))
+                .map(|(list, _)| list.split(", ").map(str::to_string).collect::<Vec<_>>());
+            if let Some(listed) = listed.filter(|l| l.iter().any(|p| values.contains(p))) {
+                assert_eq!(
+                    listed, values,
+                    "`ecr {name}`: its description lists other problems than --problem takes"
+                );
+            }
         }
     }
 }

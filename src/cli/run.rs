@@ -124,15 +124,16 @@ pub struct RunArgs {
     /// Number of Gauss–Legendre points, s ≥ r [default: r].
     #[arg(long)]
     s: Option<usize>,
-    /// Step size h > 0 (a fixed-step run; or use --tol).
-    #[arg(long, allow_negative_numbers = true, required_unless_present = "tol")]
+    /// Step size h > 0 of a fixed-step run (with --r); or solve to a tolerance with --tol.
+    #[arg(long, allow_negative_numbers = true)]
     h: Option<f64>,
-    /// Solve to this tolerance instead (rtol = atol = TOL, ECrP with the order and step the
-    /// solver chooses, the answer verified over the whole span): the report gives the
-    /// solver's error estimate and the error achieved, both in units of the tolerance,
-    /// measured against the exact solution (duffing) or a verified solve to TOL/1000. An
-    /// answer that could not be verified is reported with its reason and exit status 2.
-    #[arg(long, allow_negative_numbers = true, conflicts_with_all = ["h", "s", "paper_solver", "max_sweeps", "constant_start", "extrapolate", "newton", "tolerance"])]
+    /// Solve to this tolerance instead of a fixed step (rtol = atol = TOL, ECrP with the
+    /// order and step the solver chooses, the answer verified over the whole span): the
+    /// report gives the solver's error estimate and the error achieved, both in units of the
+    /// tolerance, measured against the exact solution (duffing) or a verified solve to
+    /// TOL/1000. An answer that could not be verified is reported with its reason and exit
+    /// status 2.
+    #[arg(long, allow_negative_numbers = true, conflicts_with_all = ["h", "s", "paper_solver", "max_sweeps", "constant_start", "extrapolate", "newton", "stage_tol"])]
     tol: Option<f64>,
     /// Final time T ≥ 0 (the last step makes the step sizes add up to T exactly: shortened if
     /// h does not divide T, or h corrected by round-off; the report's `h_last`).
@@ -141,10 +142,15 @@ pub struct RunArgs {
     /// The paper's stage solver: tolerance 1e−16, at most 5 sweeps, accepted at the limit.
     #[arg(long)]
     paper_solver: bool,
-    /// Stage-solver tolerance (scaled max-norm of the update) [default: 1e−15, or 1e−16 with
-    /// --paper-solver].
+    /// Tolerance of the stage equations' solver in a fixed-step run (scaled max-norm of the
+    /// update) [default: 1e−15, or 1e−16 with --paper-solver]; not the accuracy of the run
+    /// (that is --tol).
     #[arg(long, allow_negative_numbers = true)]
-    tolerance: Option<f64>,
+    stage_tol: Option<f64>,
+    /// The former name of --stage-tol, easily taken for --tol: refused with a line that says
+    /// which is which.
+    #[arg(long, hide = true, allow_negative_numbers = true)]
+    tolerance: Option<String>,
     /// Maximum fixed-point sweeps per step [default: 100, or 5 with --paper-solver].
     #[arg(long)]
     max_sweeps: Option<usize>,
@@ -323,6 +329,21 @@ fn check_inputs(args: &RunArgs) -> Result<(), UsageError> {
             "method 'rknc' is for Ω = 0: use --problem fpu --omega 0 (or --method tc)".to_string(),
         ));
     }
+    if args.tolerance.is_some() {
+        return Err(UsageError(
+            "--tolerance is ambiguous and no longer accepted: --tol TOL solves to a tolerance \
+             (the accuracy of the run); --stage-tol TOL sets the stage solver's tolerance of a \
+             fixed-step run"
+                .to_string(),
+        ));
+    }
+    if args.tol.is_none() && args.h.is_none() {
+        return Err(UsageError(
+            "say how to run: --tol TOL (the order and step chosen by the solver, the answer \
+             verified to TOL) or --r R --h H (a fixed method and step)"
+                .to_string(),
+        ));
+    }
     if let Some(tol) = args.tol {
         if !(tol.is_finite() && tol > 0.0) {
             return Err(UsageError(format!("--tol {tol:?} must be finite and > 0")));
@@ -356,10 +377,10 @@ fn check_inputs(args: &RunArgs) -> Result<(), UsageError> {
             args.h()
         )));
     }
-    if let Some(tol) = args.tolerance {
+    if let Some(tol) = args.stage_tol {
         if !(tol.is_finite() && tol >= 0.0) {
             return Err(UsageError(format!(
-                "--tolerance {tol:?} must be finite and >= 0"
+                "--stage-tol {tol:?} must be finite and >= 0"
             )));
         }
     }
@@ -390,7 +411,7 @@ fn solver_settings(args: &RunArgs) -> SolverSettings {
     } else {
         SolverSettings::default()
     };
-    if let Some(tol) = args.tolerance {
+    if let Some(tol) = args.stage_tol {
         settings.tolerance = tol;
     }
     if let Some(m) = args.max_sweeps {

@@ -59,7 +59,7 @@ const RUNS: &[(&str, &str)] = &[
     ),
     (
         "fpu-tc-r3-tol",
-        "--problem fpu --method tc --r 3 --h 0.02 --t-end 5 --tolerance 1e-14",
+        "--problem fpu --method tc --r 3 --h 0.02 --t-end 5 --stage-tol 1e-14",
     ),
     (
         "fpu-rknc-r2",

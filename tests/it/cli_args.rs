@@ -85,7 +85,7 @@ fn run_args() -> impl Strategy<Value = Vec<String>> {
             option("--theta", number(0.0..std::f64::consts::FRAC_PI_2).boxed()),
             option("--amplitude", number(0.1..50.0).boxed()),
             option("--n", n.boxed()),
-            option("--tolerance", number(1e-16..1e-6).boxed()),
+            option("--stage-tol", number(1e-16..1e-6).boxed()),
             option("--max-sweeps", count(1..=200).boxed()),
         ),
         prop::collection::vec(
@@ -299,6 +299,8 @@ const TOKENS: &[&str] = &[
     "0.5",
     "10",
     "--tolerance",
+    "--stage-tol",
+    "--tol",
     "--max-sweeps",
     "--paper-solver",
     "--extrapolate",

@@ -171,6 +171,19 @@ fn quick_reproduction_writes_everything() {
 /// Duffing, wind, NLS) saying who wins at equal h, at equal error and in energy, each cell
 /// naming a method; the details (methods, setup, problems) come after it.
 fn check_verdict_first(report: &str) {
+    // The first paragraph after the title answers the paper's claim in one sentence.
+    let first = report
+        .split("\n\n")
+        .map(str::trim)
+        .find(|p| !p.is_empty() && !p.starts_with('#'))
+        .unwrap_or("");
+    assert!(first.starts_with("**Answer.** In this run EC2P"), "{first}");
+    assert!(first.contains("invariant-preserving property"), "{first}");
+    assert_eq!(
+        first.matches(". ").count() + 1,
+        2,
+        "one sentence and a pointer: {first}"
+    );
     let sections: Vec<&str> = report.lines().filter(|l| l.starts_with("## ")).collect();
     assert_eq!(sections.first(), Some(&"## Verdict"), "{sections:?}");
     let start = report.find("## Verdict").unwrap();

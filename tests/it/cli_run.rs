@@ -389,7 +389,7 @@ fn bad_input_gives_one_line_and_exit_2() {
             &["--method", "tc", "--omega", "-1"],
         ),
         (&[("--problem", "fpu")], &["--method", "tc", "--theta", "1"]),
-        (&[], &["--tolerance", "-1"]),
+        (&[], &["--stage-tol", "-1"]),
         (&[], &["--max-sweeps", "0"]),
         (&[], &["--bogus"]),
         // Non-convergence is a runtime failure with the same contract.
@@ -416,6 +416,63 @@ fn bad_input_gives_one_line_and_exit_2() {
         assert_eq!(code, 2, "{args:?}: {err}");
         assert_eq!(err.lines().count(), 1, "{args:?}: {err}");
     }
+}
+
+/// How to run is never a guess: without --h and --tol the error offers both ways, and the
+/// former --tolerance (the stage solver's, easily read as the run's) is refused naming which
+/// option does what (issue 49).
+#[test]
+fn tol_and_stage_tol_cannot_be_confused() {
+    let base = ["run", "--problem", "duffing", "--t-end", "1"];
+    let (code, out, err) = ecr(&base);
+    assert_eq!((code, out.as_str()), (2, ""), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    for needle in ["--tol TOL", "--r R --h H"] {
+        assert!(err.contains(needle), "{err}");
+    }
+    for extra in [
+        &["--tolerance", "1e-8"][..],
+        &["--r", "2", "--h", "0.1", "--tolerance", "1e-14"],
+    ] {
+        let mut args = base.to_vec();
+        args.extend_from_slice(extra);
+        let (code, out, err) = ecr(&args);
+        assert_eq!((code, out.as_str()), (2, ""), "{args:?}: {err}");
+        assert_eq!(err.lines().count(), 1, "{err}");
+        for needle in ["--tol TOL", "--stage-tol TOL"] {
+            assert!(err.contains(needle), "{args:?}: {err}");
+        }
+    }
+    // --stage-tol is the stage solver's tolerance of a fixed-step run, not a way to run.
+    let (code, _, err) = ecr(&[
+        "run",
+        "--problem",
+        "duffing",
+        "--t-end",
+        "1",
+        "--stage-tol",
+        "1e-14",
+    ]);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("--tol TOL") && err.contains("--r R --h H"),
+        "{err}"
+    );
+    let (code, out, err) = ecr(&[
+        "run",
+        "--problem",
+        "duffing",
+        "--t-end",
+        "1",
+        "--r",
+        "2",
+        "--h",
+        "0.1",
+        "--stage-tol",
+        "1e-14",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("\"tolerance\": 1e-14"), "{out}");
 }
 
 /// Errors caused by an input name it, numbers are printed in shortest form, and messages have

@@ -125,3 +125,19 @@ fn references_to_docs_resolve_and_nothing_points_outside() {
     assert!(errors.is_empty(), "{}", errors.join("\n"));
     assert!(references > 50, "found only {references} references");
 }
+
+/// docs/README.md, the index of the guides, links every Markdown file of docs/.
+#[test]
+fn the_docs_index_lists_every_guide() {
+    let docs = root().join("docs");
+    let index = fs::read_to_string(docs.join("README.md")).unwrap();
+    for entry in fs::read_dir(&docs).unwrap() {
+        let name = entry.unwrap().file_name().to_string_lossy().into_owned();
+        if name.ends_with(".md") && name != "README.md" {
+            assert!(
+                index.contains(&format!("]({name})")),
+                "docs/README.md does not link {name}"
+            );
+        }
+    }
+}

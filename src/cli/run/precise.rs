@@ -64,8 +64,8 @@ fn check(args: &RunArgs) -> Result<(), UsageError> {
     if args.paper_solver {
         return refuse("--paper-solver (its stages are converged to double-double round-off)");
     }
-    if args.tolerance.is_some() {
-        return refuse("--tolerance (its stages are converged to double-double round-off)");
+    if args.stage_tol.is_some() {
+        return refuse("--stage-tol (its stages are converged to double-double round-off)");
     }
     if args.newton {
         return refuse("--newton");
