@@ -915,7 +915,6 @@ fn run_tolerance(args: &RunArgs, tol: f64, out: &mut dyn Write) -> Result<(), Us
         "reference": reference_what,
         "reference_estimate": reference_estimate.map(|e| e * 1e-3),
         "error_units": "max_i |y_i - y_ref,i| / (tol (1 + |y_ref,i|)); the reference's estimate in the same units",
-        "observed_order": solution.observed_order,
         "r": solution.r,
         "s": solution.s,
         "segments": solution.segments.iter().map(|s| json!({"t": s.t, "h": s.h})).collect::<Vec<_>>(),

@@ -110,11 +110,12 @@ fn the_concurrent_stage_path_gives_the_same_bits_on_any_pool() {
 #[test]
 fn failing_members_are_reported_while_the_others_complete() {
     let square = |y: &[f64], g: &mut [f64]| {
-        assert!(y[0] != 0.75, "g refuses 0.75");
+        // Only member 6 meets −0.75 (the others stay positive): it panics at once.
+        assert!(y[0] != -0.75, "g refuses -0.75");
         g[0] = y[0] * y[0];
     };
     let system = Semilinear::new(Zero::new(1), square);
-    let y0s = [0.1, 0.5, 2.0, f64::NAN, 0.25, 4.0, 0.75, 0.8];
+    let y0s = [0.1, 0.5, 2.0, f64::NAN, 0.25, 4.0, -0.75, 0.8];
     let template = Problem::new(&system, [0.1], (0.0, 1.0)).unwrap();
     let ensemble = Ensemble::new(template, y0s.len(), |t: &Problem<_>, i| {
         Problem::new(*t.system(), [y0s[i]], t.span())
@@ -131,7 +132,7 @@ fn failing_members_are_reported_while_the_others_complete() {
         match &m.outcome {
             Ok(y) => {
                 assert!(
-                    y0 < 1.0 && y0 != 0.75,
+                    y0 < 1.0 && y0 != -0.75,
                     "member {} (y0 = {y0}) verified",
                     m.index
                 );
@@ -148,8 +149,8 @@ fn failing_members_are_reported_while_the_others_complete() {
             Err(MemberError::Failed(e)) if y0.is_nan() => {
                 assert!(e.to_string().contains("y0"), "{e}");
             }
-            Err(MemberError::Panicked(msg)) if y0 == 0.75 => {
-                assert!(msg.contains("g refuses 0.75"), "{msg}");
+            Err(MemberError::Panicked(msg)) if y0 == -0.75 => {
+                assert!(msg.contains("g refuses -0.75"), "{msg}");
             }
             other => panic!("member {} (y0 = {y0}): {other:?}", m.index),
         }

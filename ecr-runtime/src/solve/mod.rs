@@ -35,40 +35,48 @@
 //!
 //! # How it is checked
 //!
-//! The run that is returned (ECrP of order 2r, step h) is integrated together with two runs
-//! of steps 2h and 4h over the whole span; the grids meet at every second step. Where the
-//! answer and the 2h run meet, their difference D over 2^q − 1 estimates the answer's error
-//! (Richardson); q is the order the runs show: log₂ of the ratio of the largest 4h–2h
-//! difference to the largest 2h–h difference so far (at most 2r; where the difference does
-//! not shrink as the step does — the runs are far from the asymptotic regime, or apart by
-//! chaos — q is small and the whole difference counts). The estimate never goes below a
-//! model of the run's round-off. Between grid points (output times, events) each run is
-//! stepped from its last meeting point: the answer in two steps of half the distance, the
-//! 2h run in one.
+//! The answer is ECrP of order 2r on the r Gauss–Legendre points of each step. Beside it runs
+//! its check: ECr−1P of order 2r − 2 on the r Gauss–Lobatto points of the step (both ends
+//! included), on the same steps, from its own state. Every grid point is a meeting point: the
+//! difference of the two there is the global error of the check (the answer's is of higher
+//! order, and measured 10 to 10⁴ times smaller), and that difference, plus a model of the
+//! round-off, is the estimate of the answer's error that [`Solution::error_estimates`]
+//! report. No asymptotic regime is needed: the difference of two orders on the same steps
+//! estimates the error also at the large steps where the cheapest runs live. The check looks
+//! at g at the ends of every step, where the answer's Gauss points do not: a kink of g just
+//! after a grid point, which every Gauss method integrates as if g were smooth, shows in the
+//! difference. A value between grid points (an output time, an event, [`Solution::at`]) is one
+//! step of each method from the grid point before it, estimated the same way.
 //!
 //! # How the step is chosen
 //!
-//! Pilots integrate a few steps from t₀ with the three runs for a few orders r (from one more r per two decades of tolerance, up and down while the predicted
-//! cost falls, within [`Options::orders`]) and project the estimate to the end of the span
-//! by its growth over the window. The run then goes in chunks (1/64 of the span at first,
-//! growing to 1/8); a chunk whose estimate anywhere exceeds the tolerance is integrated again
-//! with a smaller step, and after each kept chunk the estimate so far is projected to the end
-//! to set the step of the rest. The step is constant over long stretches
-//! ([`Solution::segments`], few): a step that changes from step to step destroys ECrP's
-//! long-time energy behaviour (docs/solve.md measures it).
+//! Pilots integrate a few steps from t₀ with both runs for a few orders (from one more r per
+//! two and a half decades of tolerance, up while the cost per unit time falls, then down,
+//! within [`Options::orders`]) and take the order and step whose estimate, growing as it grew
+//! over the pilot, would end the span at half the tolerance at the least cost. The run then
+//! goes in windows of 16 steps. After each window the growth of the estimate over the last
+//! windows, scaled by the check's order, sets the step of the next so that the estimate would
+//! end the span at half the tolerance: the step grows where the solution is slow and shrinks
+//! where it is fast (the close passage of an orbit), in constant-step segments
+//! ([`Solution::segments`]) whose sizes come from a ladder of ratio 2^⅛, so that a size met
+//! again finds its φ-banks built. A window whose estimate grows past the tolerance, or far past
+//! its share of what is left, is integrated again with a smaller step; where a smaller step no
+//! longer brings the growth down (the error is carried by the flow, not made in the window:
+//! chaos, a separatrix) the run starts again from t₀ aiming lower, at most four times, and then
+//! the answer is [`SolveError::Unverified`] with the reason.
+//!
+//! [`Options::max_step`] and [`Options::tstops`] are the remedies for features the sampled
+//! methods cannot see: a pulse narrower than the steps, a kink at a known time.
 
-mod dense;
-mod drive;
-mod estimate;
+mod control;
 mod events;
-mod grid;
-mod hermite;
-mod kept;
+mod fixed;
 mod options;
 mod pilot;
-mod run;
+mod record;
+mod runs;
 mod solution;
-mod trail;
+mod window;
 
 use std::ops::ControlFlow;
 use std::sync::Arc;
@@ -85,9 +93,9 @@ use crate::system::System;
 /// The banks of one solve, shared by its pilots, runs, checking runs and output steps.
 pub(crate) type SolveCache<S> = BankCache<<<S as System>::Op as LinearOperator>::Bank>;
 
-/// Banks a solve keeps at once (besides the ones in use): every step size of the three runs of
-/// the current attempt and of the one before.
-const SOLVE_CACHE_BANKS: usize = 12;
+/// Banks a solve keeps at once (besides the ones in use): the answer's and the check's for the
+/// step sizes of the ladder the run moves on.
+const SOLVE_CACHE_BANKS: usize = 16;
 
 /// An initial value problem y' = Ay + g(y), y(t₀) = y₀, on [t₀, t_end]. The system is held
 /// behind a reference count, so that the solutions share it rather than borrow the problem.
@@ -191,6 +199,111 @@ impl<S: System> Problem<S> {
     }
 }
 
+impl<S: System> Problem<S> {
+    /// The solve: options checked, then a fixed-step run or the verified one.
+    fn run(
+        &self,
+        options: &Options,
+        mut observer: record::Observer<'_>,
+    ) -> std::result::Result<Solution<S>, SolveError> {
+        options.validate()?;
+        if let Some(ts) = &options.t_eval {
+            if let Some(&t) = ts.iter().find(|&&t| t < self.t0 || t > self.t_end) {
+                return Err(Error::InvalidInput(format!(
+                    "t_eval holds {t:?}, outside the time span [{:?}, {:?}]",
+                    self.t0, self.t_end
+                ))
+                .into());
+            }
+        }
+        let system = &*self.system;
+        let cache = Arc::new(SolveCache::<S>::new(SOLVE_CACHE_BANKS));
+        let verified = !matches!(options.method, Method::Fixed { .. });
+        let ctx = window::Ctx::new(options, (self.t0, self.t_end), &self.y0, verified);
+        let mut make = |r: usize, check: bool, h: f64| -> Result<Box<dyn runs::Runs + '_>> {
+            crate::storage::ensure_bytes_allocatable(
+                &format!(
+                    "the steppers of EC{r}P for this solve (d = {}{})",
+                    system.dim(),
+                    if check { ", with its check" } else { "" }
+                ),
+                solve_stepper_bytes(system, r, check, &options.settings),
+            )?;
+            let runs = runs::PairRuns::new(system, r, check, h, options.settings, &cache)?;
+            Ok(Box::new(runs))
+        };
+        match options.method {
+            Method::Fixed { r, h } => {
+                let span = self.t_end - self.t0;
+                // A step beyond the span is one step of the span.
+                let h = if span > 0.0 { h.min(span) } else { h };
+                let plan = crate::integrate::StepPlan::new(self.t0, self.t_end, h)?;
+                let steps = plan.steps();
+                if steps > options.max_steps {
+                    return Err(Error::InvalidInput(format!(
+                        "the integration needs {steps} steps of h = {h:?}, more than max_steps = {}",
+                        options.max_steps
+                    ))
+                    .into());
+                }
+                // Refused before the run rather than aborted on an allocation midway.
+                let outputs = options.t_eval.as_ref().map_or(steps + 1, Vec::len);
+                let grid = if options.dense { steps + 1 } else { 0 };
+                record::ensure_output_fits(self.y0.len(), outputs, grid)?;
+                let mut runs = make(r, false, plan.last.filter(|_| steps == 1).unwrap_or(h))?;
+                let record = fixed::fixed(&ctx, &mut *runs, h, plan, &mut observer)?;
+                Ok(record.into_solution(
+                    options,
+                    &self.system,
+                    &self.y0,
+                    false,
+                    r,
+                    Stats::default(),
+                ))
+            }
+            _ => {
+                if !self.y0.iter().all(|v| v.abs() < f64::MAX / 16.0) {
+                    let big = self.y0.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+                    return Err(Error::InvalidInput(format!(
+                        "y0 holds {big:e}, too close to the largest f64 ({:e}) for its rounding \
+                         to be bounded: the steps would overflow; rescale the problem",
+                        f64::MAX
+                    ))
+                    .into());
+                }
+                let floor = ctx.floor();
+                if floor > 0.25 {
+                    return Err(Error::InvalidInput(format!(
+                        "rtol = {:e}, atol = {:e} is below what f64 can verify for this problem: \
+                         the rounding of y0 alone is {floor:.2e} times it; ask for about {:.0e} \
+                         times the tolerance or more",
+                        options.rtol,
+                        options.atol,
+                        (4.0 * floor).max(1.0)
+                    ))
+                    .into());
+                }
+                let out = control::verified(&ctx, &mut make, &mut observer)?;
+                let solution = out.record.into_solution(
+                    options,
+                    &self.system,
+                    &self.y0,
+                    true,
+                    out.r,
+                    out.stats,
+                );
+                match out.unverified {
+                    None => Ok(solution),
+                    Some(reason) => Err(SolveError::Unverified {
+                        reason,
+                        solution: Box::new(solution.into_data()),
+                    }),
+                }
+            }
+        }
+    }
+}
+
 /// `n` evenly spaced points from `a` to `b` (both included; `[a]` for n = 1).
 pub fn linspace(a: f64, b: f64, n: usize) -> Vec<f64> {
     match n {
@@ -209,13 +322,13 @@ pub fn linspace(a: f64, b: f64, n: usize) -> Vec<f64> {
 }
 
 /// The bytes the steppers of one solve of `system` at order 2r hold at their peak, or `None`
-/// if the count overflows a `usize`: the returned run, its three checking runs (2h, 3h and
-/// the perturbed 3h run that measures the sensitivity to rounding) and the output stepper,
+/// if the count overflows a `usize`: the answer and its check (ECr−1P on r Gauss–Lobatto
+/// points: the same sizes as the answer's) and their copies for values between grid points,
 /// each as [`ec_stepper_bytes`](crate::stepper::ec_stepper_bytes) counts it (s = r), together
 /// with the largest bank once more (a change of step size builds the new bank before the old
-/// one goes) and the banks the solve keeps for step sizes it may come back to (at most 12, and
-/// at most 256 MiB beyond the largest). With `check == false` (a fixed-step solve) the
-/// returned run and the output stepper only.
+/// one goes) and the banks the solve keeps for step sizes it may come back to (at most 16, and
+/// at most 256 MiB beyond the largest). With `check == false` (a fixed-step solve) the answer
+/// and its copy only.
 ///
 /// [`Problem::solve`] compares this with what can be allocated before it builds the steppers
 /// of an order, and refuses that order with an error naming the size rather than aborting
@@ -228,7 +341,7 @@ pub fn solve_stepper_bytes<S: System>(
 ) -> Option<usize> {
     use crate::stepper::{Predictor, SolverSettings, StepperBytes, ec_stepper_bytes};
     let run = ec_stepper_bytes(system, r, r, settings)?;
-    let output = ec_stepper_bytes(
+    let between = ec_stepper_bytes(
         system,
         r,
         r,
@@ -237,8 +350,9 @@ pub fn solve_stepper_bytes<S: System>(
             ..*settings
         },
     )?;
-    let mut held = vec![run; if check { 4 } else { 1 }];
-    held.push(output);
+    let copies = if check { 2 } else { 1 };
+    let mut held = vec![run; copies];
+    held.extend(std::iter::repeat_n(between, copies));
     let peak = StepperBytes::peak_of(&held)?;
     let budget = (crate::stepper::CACHE_BUDGET * size_of::<f64>()).max(run.bank);
     let kept = run.bank.saturating_mul(SOLVE_CACHE_BANKS).min(budget);

@@ -41,6 +41,8 @@ pub struct Options {
     pub(super) events: Vec<Event>,
     pub(super) settings: SolverSettings,
     pub(super) max_steps: usize,
+    pub(super) max_step: f64,
+    pub(super) tstops: Vec<f64>,
     pub(super) trace: Option<TraceSink>,
 }
 
@@ -56,6 +58,8 @@ impl fmt::Debug for Options {
             .field("events", &self.events)
             .field("settings", &self.settings)
             .field("max_steps", &self.max_steps)
+            .field("max_step", &self.max_step)
+            .field("tstops", &self.tstops)
             .field("trace", &self.trace.is_some())
             .finish()
     }
@@ -70,19 +74,22 @@ const _: () = {
 };
 
 impl Default for Options {
-    /// rtol = 1e−6, atol = 1e−9, [`Method::Auto`] over r = 1..=8, output at every verified
-    /// step, the stepper's default [`SolverSettings`], at most 10⁸ steps in one run.
+    /// rtol = 1e−6, atol = 1e−9, [`Method::Auto`] over r = 2..=8, output at every step, the
+    /// stepper's default [`SolverSettings`], at most 10⁸ steps in one run, no largest step, no
+    /// times the steps must land on.
     fn default() -> Self {
         Options {
             rtol: 1e-6,
             atol: 1e-9,
             method: Method::Auto,
-            orders: 1..=8,
+            orders: 2..=8,
             t_eval: None,
             dense: false,
             events: Vec::new(),
             settings: SolverSettings::default(),
             max_steps: 100_000_000,
+            max_step: f64::INFINITY,
+            tstops: Vec::new(),
             trace: None,
         }
     }
@@ -128,15 +135,17 @@ impl Options {
         self
     }
 
-    /// The orders [`Method::Auto`] chooses from (r, order 2r; default 1..=8).
+    /// The orders [`Method::Auto`] chooses from (r of the answer, order 2r; default 2..=8). The
+    /// answer of order 2r is checked by a method of order 2r − 2, so r ≥ 2.
     #[must_use]
     pub fn orders(mut self, orders: RangeInclusive<usize>) -> Self {
         self.orders = orders;
         self
     }
 
-    /// Output at these times (ascending, within the time span) instead of at every point where
-    /// the error is verified (every second step of the run; every step for a fixed method).
+    /// Output at these times (ascending, within the time span) instead of at every step. They
+    /// never change the steps: a value between grid points is one step of the answer (and of
+    /// its check, for its estimate) from the grid point before it.
     #[must_use]
     pub fn t_eval(mut self, times: impl IntoIterator<Item = f64>) -> Self {
         self.t_eval = Some(times.into_iter().collect());
@@ -173,9 +182,51 @@ impl Options {
         self
     }
 
-    /// Tells `sink` every decision of the solve, one line each: every pilot level (its step,
-    /// estimate and observed order), every stretch of the run with its estimate and
-    /// projection, every run started again and why. For finding out why a solve chose what
+    /// No step longer than `h`. A feature of the solution narrower than the steps the
+    /// tolerance allows elsewhere — a pulse, a short forcing — can fall between the points where
+    /// the methods sample g, and then no estimate sees it (no sampled method can): a largest
+    /// step below its width makes the steps see it. For a feature at a known time,
+    /// [`tstops`](Self::tstops) is cheaper.
+    #[must_use]
+    pub fn max_step(mut self, h: f64) -> Self {
+        self.max_step = h;
+        self
+    }
+
+    /// Times the steps land on (within the span; others are ignored): a kink or a jump of g at
+    /// a known time is then a grid point, where the methods of the step start afresh, instead
+    /// of lying inside a step whose polynomial cannot follow it. The remedy for a right-hand
+    /// side that is not smooth at known times; see also [`max_step`](Self::max_step).
+    #[must_use]
+    pub fn tstops(mut self, times: impl IntoIterator<Item = f64>) -> Self {
+        self.tstops = times.into_iter().collect();
+        self
+    }
+
+    /// The answer's orders r a verified solve may choose (r ≥ 2: its check is of order 2r − 2).
+    pub(super) fn answer_orders(&self) -> Result<(usize, usize)> {
+        let (lo, hi) = match self.method {
+            Method::Order(r) => (r, r),
+            _ => (*self.orders.start(), *self.orders.end()),
+        };
+        if hi < 2 {
+            return Err(Error::InvalidParameter(format!(
+                "a verified solve needs r >= 2 (order 4 or more: the answer of order 2r is checked \
+                 by a method of order 2r - 2); got r = {hi}; for order 2 without a check use \
+                 Options::fixed(1, h)"
+            )));
+        }
+        let top = ecr_codegen::MAX_R;
+        if hi > top {
+            return Err(Error::InvalidParameter(format!(
+                "r = {hi} is beyond the largest supported r = {top}"
+            )));
+        }
+        Ok((lo.max(2), hi))
+    }
+    /// Tells `sink` every decision of the solve, one line each (starting with `solve: `): every
+    /// pilot round (its order, step and estimate), every kept window with its step and
+    /// estimate, every window integrated again and every run started again, and why. For finding out why a solve chose what
     /// it chose, or why it could not verify its answer; the library itself never prints.
     ///
     /// ```
@@ -192,23 +243,8 @@ impl Options {
     /// otherwise).
     pub(super) fn say(&self, line: impl FnOnce() -> String) {
         if let Some(sink) = &self.trace {
-            sink(&line());
+            sink(&format!("solve: {}", line()));
         }
-    }
-
-    /// The scaled size of a difference `e` at the state `y`: max_i |e_i| / (atol + rtol |y_i|),
-    /// a zero difference counting 0 also where the weight is 0.
-    pub(super) fn scaled(&self, e: impl Iterator<Item = f64>, y: &[f64]) -> f64 {
-        e.zip(y)
-            .map(|(e, y)| {
-                let e = e.abs();
-                if e == 0.0 {
-                    0.0
-                } else {
-                    e / (self.atol + self.rtol * y.abs())
-                }
-            })
-            .fold(0.0, |m, x| if x > m || x.is_nan() { x } else { m })
     }
 
     pub(crate) fn validate(&self) -> Result<()> {
@@ -247,6 +283,15 @@ impl Options {
         }
         if self.max_steps == 0 {
             return Err(Error::InvalidParameter("max_steps must be >= 1".into()));
+        }
+        if self.max_step.is_nan() || self.max_step <= 0.0 {
+            return Err(Error::InvalidParameter(format!(
+                "max_step must be > 0 (got {:?})",
+                self.max_step
+            )));
+        }
+        if self.tstops.iter().any(|t| !t.is_finite()) {
+            return Err(Error::NonFinite("tstops"));
         }
         self.settings.validate()
     }

@@ -1,335 +1,151 @@
-//! The pilots: a few steps of the three runs from t₀ for a few orders, to choose r and the
-//! first step size.
+//! The pilot of a solve: the order and the first step size, from a few steps from t₀ of both
+//! runs for each order tried.
 
-use std::sync::Arc;
-
-use super::estimate::{TARGET, divisor, estimate, rescale};
-use super::grid::{fit_grid, quantum};
-use super::options::Options;
-use super::run::{Collect, MEET, Runs, StepFailure};
+use super::runs::{Cost, Make};
 use super::solution::Stats;
-use super::{Problem, SolveCache};
-use crate::error::{Error, Result};
-use crate::system::System;
+use super::window::{Ctx, P_BOLD, TARGET, advance, check_order, resolution};
+use crate::error::Result;
 
-/// Blocks of [`MEET`] steps in a pilot's window.
-const PILOT_BLOCKS: usize = 2;
+/// Steps of a pilot window.
+pub(super) const PILOT_STEPS: usize = 8;
 
-/// How far beyond the step of a confirmed level the pilot trusts the step-size law: the check
-/// needs its 3h run in the asymptotic regime, which the level showed for its own step only.
-const PILOT_REACH: f64 = 1.25;
+/// Pilot rounds per order (each rescales the step from the growth it saw).
+pub(super) const PILOT_ROUNDS: usize = 4;
 
-/// The pilots of further orders stop once they have cost this share of the predicted run.
-const PILOT_BUDGET: f64 = 0.1;
-
-/// What the pilot of one order found.
-#[derive(Clone, Copy, Debug)]
-pub(super) struct Pilot {
-    pub(super) r: usize,
-    /// The step size predicted to give [`TARGET`] at the end of the span.
-    pub(super) h: f64,
-    /// Predicted evaluations of g of the run.
-    pub(super) cost: f64,
-    /// The order the differences showed (r, half the nominal, where they were at round-off).
-    pub(super) order: f64,
-    /// The step at which they showed it.
-    pub(super) h_order: f64,
+/// The first order tried for a tolerance: one more r per two and a half decades.
+pub(super) fn first_order(ctx: &Ctx<'_>, lo: usize, hi: usize) -> usize {
+    let tol = ctx
+        .options
+        .rtol
+        .min(ctx.options.atol)
+        .max(ctx.options.rtol.max(ctx.options.atol) * 1e-3);
+    let guess = 2.0 + (-tol.max(1e-300).log10() / 2.5).round();
+    (guess.max(2.0) as usize).clamp(lo, hi)
 }
 
-/// What one pilot level saw.
-#[derive(Clone, Copy, Debug)]
-struct Level {
-    h: f64,
-    /// The largest estimate over the window and over its first half.
-    e_w: f64,
-    e_half: f64,
-    /// The order the differences showed.
-    q: f64,
-    /// The growth of the estimate from the end of the window to the end of the span.
-    growth: f64,
-    span_eff: f64,
-    g_per_step: f64,
-}
-
-/// The largest step the non-asymptotic levels allow with order q: each level's difference
-/// projected to the end of the span, divided by the Richardson divisor of q, scaled to
-/// [`TARGET`] by the step-size law.
-fn caps(coarse: &[(f64, f64)], q: f64, _span: f64) -> f64 {
-    coarse
-        .iter()
-        .map(|&(h, diff)| {
-            rescale(
-                h,
-                TARGET / (diff / divisor(Some(q))).max(f64::MIN_POSITIVE),
-                q,
-            )
-        })
-        .fold(f64::INFINITY, f64::min)
-}
-
-impl<S: System> Problem<S> {
-    /// The pilot's answer from a confirmed level: the step-size law to [`TARGET`] at the end of
-    /// the span with order q, trusted up to twice the level's step, capped by what the coarser
-    /// levels saw.
-    fn pilot_from(
-        &self,
-        options: &Options,
-        r: usize,
-        p: f64,
-        c: &Level,
-        q: f64,
-        coarse: &[(f64, f64)],
-    ) -> Pilot {
-        let predicted = c.e_w * c.growth;
-        let law = rescale(
-            c.h,
-            TARGET / predicted.max(f64::MIN_POSITIVE),
-            q.max(0.5 * p),
-        );
-        let h_run = law.min(PILOT_REACH * c.h).min(c.span_eff / 4.0).min(caps(
-            coarse,
-            q.max(0.5 * p),
-            c.span_eff,
-        ));
-        options.say(|| {
-            format!(
-                "solve: pilot EC{r}P: confirmed h = {:.4e} (order {q:.2}), predicted {predicted:.3e}, h_run {h_run:.4e}, g/step {:.2}",
-                c.h, c.g_per_step
-            )
-        });
-        Pilot {
-            r,
-            h: h_run,
-            cost: c.g_per_step * c.span_eff / self.grid_step(options, h_run),
-            order: q,
-            h_order: c.h,
-        }
-    }
-
-    /// The first order tried for a tolerance: about one more r per two decades, r = 4 at
-    /// 1e−6, r = 6 at 1e−10, within the allowed orders.
-    pub(super) fn first_order(&self, options: &Options) -> usize {
-        let tol = options.rtol.max(options.atol).max(1e-16);
-        let guess = (1.0 - tol.log10() / 2.0).round() as usize;
-        guess.clamp(*options.orders.start(), *options.orders.end())
-    }
-
-    /// Pilots from the first order up, and down, while the predicted cost falls.
-    pub(super) fn pilot_auto(
-        &self,
-        options: &Options,
-        stats: &mut Stats,
-        cache: &Arc<SolveCache<S>>,
-    ) -> Result<Pilot> {
-        let first = self.first_order(options);
-        let mut best = self.pilot(options, first, None, stats, cache)?;
-        let (lo, hi) = (*options.orders.start(), *options.orders.end());
-        for up in [true, false] {
-            let mut r = first;
-            let mut h_from = best.h;
-            loop {
-                let next = if up { r + 1 } else { r.wrapping_sub(1) };
-                // Exploring stops where it would cost more than a tenth of the run.
-                let spent = stats.pilot_g_evals as f64;
-                if next < lo || next > hi || spent > PILOT_BUDGET * best.cost {
-                    break;
+/// The order and the first step size: for each order tried, a few steps from t₀ whose estimate
+/// growth, projected over the span, says the step that meets the target; the order of least
+/// cost per unit time wins. Orders are tried from the first guess up while the cost falls,
+/// then down.
+pub(super) fn pilot(
+    ctx: &Ctx<'_>,
+    make: &mut Make<'_, '_>,
+    lo: usize,
+    hi: usize,
+    stats: &mut Stats,
+) -> Result<(usize, f64)> {
+    let span = ctx.t_end - ctx.t0;
+    let max_step = ctx.options.max_step.min(span);
+    let first = first_order(ctx, lo, hi);
+    let mut h = (span / 8.0 / PILOT_STEPS as f64).min(max_step);
+    let mut tried: Vec<(usize, f64, f64)> = Vec::new();
+    let mut measure = |r: usize, h0: f64, stats: &mut Stats| -> Result<(f64, f64, bool)> {
+        let p = check_order(r);
+        let mut h = h0;
+        let mut runs = make(r, true, h)?;
+        let (mut per_step, mut seen) = (0.0, 0.0_f64);
+        for round in 0..PILOT_ROUNDS {
+            runs.set_step_size(h)?;
+            let window = (span / 8.0).min(PILOT_STEPS as f64 * h);
+            let steps = ((window / h).ceil() as usize).max(1);
+            let mut cost = Cost::default();
+            let result = advance(
+                ctx,
+                &mut *runs,
+                &ctx.start(),
+                (ctx.t0, 0),
+                steps,
+                None,
+                &mut cost,
+            );
+            stats.pilot(&cost);
+            let points = match result {
+                Ok(points) => points,
+                Err(f) => {
+                    ctx.options.say(|| {
+                        format!(
+                            "pilot EC{r}P h = {h:.3e}: a step failed at t = {:?} ({})",
+                            f.t, f.error
+                        )
+                    });
+                    h /= 4.0;
+                    if h < resolution(ctx.t0.abs().max(ctx.t_end.abs())) {
+                        return Err(f.error);
+                    }
+                    continue;
                 }
-                let Ok(p) = self.pilot(options, next, Some(h_from), stats, cache) else {
-                    break;
-                };
-                h_from = p.h;
-                r = next;
-                if p.cost < best.cost {
-                    best = p;
-                } else {
-                    break;
-                }
+            };
+            per_step = cost.total_g_evals() as f64 / steps as f64;
+            let duration = steps as f64 * h;
+            let growth = points.iter().map(|q| q.est).fold(0.0, f64::max);
+            seen = seen.max(growth);
+            let rate = growth / duration;
+            let wanted = TARGET / span;
+            // At most PILOT_STEPS steps of the pilot fit in 1/8 of the span: a step beyond that is
+            // not measured by enough steps.
+            let next = if rate > 0.0 {
+                (h * (wanted / rate).powf(1.0 / p.min(P_BOLD))).clamp(h / 16.0, h * 4.0)
+            } else {
+                h * 4.0
             }
-        }
-        Ok(best)
-    }
-
-    /// The step the run will take for a step `h` allows: with evenly spaced output times
-    /// every one is a meeting point of the runs, so at most a sixth of their spacing (where
-    /// that binds, a lower order costs less for the same step).
-    fn grid_step(&self, options: &Options, h: f64) -> f64 {
-        let q = quantum(options.t_eval.as_deref(), self.t0, self.t_end);
-        fit_grid(h, self.t0, self.t_end, q, usize::MAX).map_or(h, |g| g.h)
-    }
-
-    /// The pilot of one order: the three runs over a window of [`PILOT_BLOCKS`] blocks of
-    /// [`MEET`] steps from t₀ (up to a terminal event). Starting from `h_start` (or 1/64 of the
-    /// span), the step grows while the runs agree to round-off, then halves until they show
-    /// an order of at least r (half the nominal 2r); the estimate is projected to the end of
-    /// the span by its growth over the window, and h scaled to [`TARGET`] (at most twice the
-    /// step at which the law was seen).
-    pub(super) fn pilot(
-        &self,
-        options: &Options,
-        r: usize,
-        h_start: Option<f64>,
-        stats: &mut Stats,
-        cache: &Arc<SolveCache<S>>,
-    ) -> Result<Pilot> {
-        let span = self.t_end - self.t0;
-        let p = (2 * r) as f64;
-        let system = &*self.system;
-        let blocks = (PILOT_BLOCKS * MEET) as f64;
-        let mut h = h_start.unwrap_or(span / 64.0).min(span / blocks);
-        let collect = Collect {
-            every_step: false,
-            steps: false,
-            grid: false,
-            events: false,
-            t_eval: false,
-        };
-        let (mut grown, mut refined) = (0, false);
-        let mut last_failure: Option<StepFailure> = None;
-        // Levels whose differences showed no asymptotic order: (step, the largest difference
-        // projected to the end of the span). Once the order is known, each caps the step: a
-        // finer level over a shorter window does not see what a coarser one over a longer
-        // window saw.
-        let mut coarse: Vec<(f64, f64)> = Vec::new();
-        // An asymptotic level waiting for the next finer one to confirm it: a short window at
-        // a large step can show a clean order by chance (the steps alias an oscillation).
-        let mut candidate: Option<Level> = None;
-        for _ in 0..60 {
-            let window = (blocks * h).min(span);
-            let grid = fit_grid(h, self.t0, self.t0 + window, None, usize::MAX)?;
-            if h < span * 1e-12 {
+            .min(max_step)
+            .min(span / 8.0 / PILOT_STEPS as f64);
+            ctx.options.say(|| {
+                format!(
+                    "pilot EC{r}P round {round}: h = {h:.4e}, {steps} steps, estimate {growth:.3e} → h = {next:.4e}"
+                )
+            });
+            let settled = next <= 3.0 * h && next >= h / 3.0;
+            h = next;
+            if settled {
                 break;
             }
-            let mut runs = Runs::new(
-                system,
-                options,
-                r,
-                true,
-                &self.y0,
-                grid,
-                self.same_time(),
-                1.0,
-                cache,
-            )?;
-            let chunk = match runs.advance(grid.n_end, collect) {
-                Ok(c) => c,
-                Err((f, _)) if f.fatal => return Err(f.error),
-                Err((f, cost)) => {
-                    stats.pilot_steps += cost.total_steps();
-                    stats.pilot_g_evals += cost.total_g_evals();
-                    last_failure = Some(f);
-                    refined = true;
-                    candidate = None;
-                    h /= 4.0;
-                    continue;
-                }
-            };
-            stats.pilot_steps += chunk.cost.total_steps();
-            stats.pilot_g_evals += chunk.cost.total_g_evals();
-            let end = chunk.terminal.map_or(self.t0 + window, |t| t.t);
-            let span_eff = chunk.terminal.map_or(span, |t| t.t - self.t0);
-            let order = runs.maxima.order(p);
-            let div = divisor(order);
-            let est_until = |t_max: f64| {
-                chunk
-                    .meets
-                    .iter()
-                    .filter(|m| m.t <= t_max)
-                    .map(|m| estimate(m.diff, m.noise, div))
-                    .fold(0.0, f64::max)
-            };
-            let e_w = est_until(end);
-            let e_half = est_until(self.t0 + 0.5 * (end - self.t0));
-            let noise = chunk.meets.iter().map(|m| m.noise).fold(0.0, f64::max);
-            // The work of a step of the answer, in evaluations of g (see `work_per_g_eval`).
-            let g_per_step =
-                chunk.cost.g_evals as f64 / chunk.cost.steps.max(1) as f64 * runs.work_per_g_eval();
-            let at_noise = e_w <= 2.0 * noise || order.is_none();
-            options.say(|| format!(
-                    "solve: pilot EC{r}P h = {:.4e}: window estimate {e_w:.3e} (half {e_half:.3e}), noise {noise:.3e}, order {order:?}",
-                    grid.h
-                ));
-            // Growth over the window, as a power of time: from a plateau (a damped problem)
-            // to linear (the phase error of a conservative one); the run checks the rest.
-            let alpha = if e_half > 0.0 {
-                (e_w / e_half).log2().clamp(0.25, 1.0)
-            } else {
-                1.0
-            };
-            let growth = (span_eff / (end - self.t0)).powf(alpha);
-            let level = Level {
-                h: grid.h,
-                e_w,
-                e_half,
-                q: order.unwrap_or(p),
-                growth,
-                span_eff,
-                g_per_step,
-            };
-            if at_noise {
-                if let Some(c) = candidate.take() {
-                    // The finer level agrees to round-off: the candidate is confirmed if its
-                    // estimate at the same time, scaled by the order, is at that level too.
-                    if c.e_half / 2f64.powf(c.q) <= 8.0 * noise.max(e_w) {
-                        return Ok(self.pilot_from(options, r, p, &c, c.q, &coarse));
-                    }
-                    coarse.push((c.h, c.e_w * divisor(Some(c.q)) * c.growth));
-                }
-                if !refined && grown < 4 && window < span / 4.0 {
-                    // The runs agree to round-off: the step can be larger.
-                    h *= 4.0;
-                    grown += 1;
-                    continue;
-                }
-                let q = order.unwrap_or(0.5 * p);
-                let caps = caps(&coarse, p.max(q), span_eff);
-                let h_run = (4.0 * grid.h).min(span_eff / 4.0).min(caps);
-                return Ok(Pilot {
-                    r,
-                    h: h_run,
-                    cost: g_per_step * span_eff / self.grid_step(options, h_run),
-                    order: q,
-                    h_order: grid.h,
-                });
-            }
-            if level.q < 0.5 * p {
-                // Not in the asymptotic regime (nor was a candidate before it, if it
-                // disagrees).
-                if let Some(c) = candidate.take() {
-                    coarse.push((c.h, c.e_w * divisor(Some(c.q)) * c.growth));
-                }
-                coarse.push((level.h, e_w * div * growth));
-                refined = true;
-                h /= 2.0;
-                continue;
-            }
-            match candidate.take() {
-                Some(c) => {
-                    // Consistent: the coarser level's estimate at the end of this window
-                    // (its half window) is this one's times 2^q, within a factor 16.
-                    let q = c.q.min(level.q);
-                    let ratio = c.e_half / e_w;
-                    let expected = 2f64.powf(q);
-                    if ratio >= expected / 16.0 && ratio <= expected * 16.0 {
-                        return Ok(self.pilot_from(options, r, p, &c, q, &coarse));
-                    }
-                    coarse.push((c.h, c.e_w * divisor(Some(c.q)) * c.growth));
-                    candidate = Some(level);
-                }
-                None => candidate = Some(level),
-            }
-            refined = true;
-            h /= 2.0;
         }
-        Err(match last_failure {
-            Some(f) => Error::Numerical(format!(
-                "the pilot of EC{r}P found no step size at which its steps succeed (last: h = \
-                 {:.3e} at t = {:?}: {})",
-                f.h, f.t, f.error
-            )),
-            None => Error::Numerical(format!(
-                "the pilot of EC{r}P found no step size at which the error behaves as an order \
-                 of at least {r} (last tried h = {h:.3e})"
-            )),
-        })
+        // An estimate far below the target over the pilot says nothing of how the orders
+        // compare (nothing happens there yet, or only rounding shows).
+        let informative = seen > 1e-3 * TARGET;
+        Ok((h, per_step / h, informative))
+    };
+    let (h0, c0, informative) = measure(first, h, stats)?;
+    tried.push((first, h0, c0));
+    if !informative {
+        ctx.options
+            .say(|| format!("pilot: the estimate says nothing yet → EC{first}P, h = {h0:.4e}"));
+        return Ok((first, h0));
     }
+    h = h0;
+    // Up while the cost per unit time falls, then down.
+    for dir in [1isize, -1] {
+        let mut r = first;
+        let mut best = c0;
+        loop {
+            let next = r as isize + dir;
+            if next < lo as isize || next > hi as isize {
+                break;
+            }
+            r = next as usize;
+            let (hr, cr, _) = measure(r, h, stats)?;
+            tried.push((r, hr, cr));
+            if cr >= best {
+                break;
+            }
+            best = cr;
+            h = hr;
+        }
+        if tried.iter().any(|t| t.0 > first && t.2 < c0) {
+            break;
+        }
+    }
+    let &(r, h, _) = tried
+        .iter()
+        .min_by(|a, b| a.2.total_cmp(&b.2))
+        .expect("one order was tried");
+    ctx.options.say(|| {
+        let list: Vec<String> = tried
+            .iter()
+            .map(|t| format!("r = {} h = {:.3e} cost {:.3e}", t.0, t.1, t.2))
+            .collect();
+        format!("pilot: {} → EC{r}P, h = {h:.4e}", list.join("; "))
+    });
+    Ok((r, h))
 }

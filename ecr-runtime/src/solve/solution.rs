@@ -6,7 +6,6 @@ use std::cell::Cell;
 use std::fmt;
 use std::sync::Arc;
 
-use super::dense::DenseStep;
 use super::events::EventHit;
 use crate::error::{Error, Result};
 use crate::stepper::SolverSettings;
@@ -63,25 +62,27 @@ pub struct Stats {
     pub g_evals: usize,
     /// Stage sweeps (fixed-point or Newton iterations) in those steps.
     pub sweeps: usize,
-    /// Steps of the runs that check it (steps 2h and 3h; none for a fixed method).
+    /// Steps of the run that checks it (the method of order 2r − 2 on the same steps; none for
+    /// a fixed method).
     pub check_steps: usize,
     /// Evaluations of g in those steps.
     pub check_g_evals: usize,
-    /// Steps of the pilot runs that chose the order and the first step size.
+    /// Steps of the pilot runs (answer and check) that chose the order and the first step size.
     pub pilot_steps: usize,
     /// Evaluations of g in the pilot runs.
     pub pilot_g_evals: usize,
-    /// Steps of all three runs over stretches that were integrated again with a smaller step
-    /// (the estimate was above the tolerance there, or a step failed).
+    /// Steps of both runs over stretches that were integrated again with a smaller step (the
+    /// estimate grew too much there, or a step failed) and of runs started again from t₀.
     pub discarded_steps: usize,
     /// Evaluations of g in those steps.
     pub discarded_g_evals: usize,
-    /// How often a stretch was integrated again.
+    /// How often a stretch was integrated again with a smaller step: a window whose estimate
+    /// grew too much, or the run from t₀.
     pub retries: usize,
-    /// Steps taken to evaluate the solution between grid points (output times, events).
+    /// Steps taken to evaluate the solution between grid points (output times, events), of
+    /// both runs.
     pub dense_evals: usize,
-    /// Evaluations of g in those steps, and (with dense output of a verified solve) one per
-    /// stored grid point for the derivatives of [`Solution::at`]'s interpolant.
+    /// Evaluations of g in those steps.
     pub dense_g_evals: usize,
 }
 
@@ -118,8 +119,7 @@ pub struct Segment {
 /// [`at`](Self::at). `Solution<()>` (the default) is the same data without the system, as
 /// [`SolveError::Unverified`] carries it.
 pub struct Solution<S = ()> {
-    /// The output times: `t_eval`, or every point at which the error was verified (every
-    /// second step of the run; every step for a fixed method), t₀ first; up to the end of
+    /// The output times: `t_eval`, or every grid point of the run, t₀ first; up to the end of
     /// the integration.
     pub t: Vec<f64>,
     /// The states at those times.
@@ -133,117 +133,41 @@ pub struct Solution<S = ()> {
     /// The largest of [`error_estimates`](Self::error_estimates) and of the events'
     /// estimates; `None` for a fixed method and for a solution with no output.
     pub error_estimate: Option<f64>,
-    /// The order the check observed (from the ratio of the differences of the runs with steps
-    /// 2h and 3h to the returned run with step h; at most 2r, `None` where the differences were at round-off
-    /// level or for a fixed method).
-    pub observed_order: Option<f64>,
     /// The located zeros of the events, in time order.
     pub events: Vec<EventHit>,
     /// How the integration ended.
     pub status: Status,
     /// What it cost.
     pub stats: Stats,
-    /// The order used: r (order 2r).
+    /// The order of the answer: r (order 2r); its check was of order 2r − 2.
     pub r: usize,
     /// Gauss–Legendre points per step.
     pub s: usize,
     /// The step size of the last stretch (see [`segments`](Self::segments)).
     pub h: f64,
     /// The constant-step stretches of the run, in time order (one for a run that never
-    /// changed its step).
+    /// changed its step; several where the time scale of the solution changes, as at the close
+    /// passages of an eccentric orbit).
     pub segments: Vec<Segment>,
     pub(super) energy0: Option<f64>,
     pub(super) dense: Option<DenseData<S>>,
 }
 
-/// What [`Solution::at`] needs: the grid states, the system and the method.
+/// What [`Solution::at`] needs: the grid states of both runs, the system and the method.
 pub(super) struct DenseData<S> {
     pub(super) system: Arc<S>,
     pub(super) r: usize,
     pub(super) settings: SolverSettings,
     /// (rtol, atol) of the solve.
     pub(super) tolerance: (f64, f64),
-    /// The grid: where the run's state is kept, with the largest step that follows it.
+    /// The grid times.
     pub(super) t: Vec<f64>,
-    pub(super) h: Vec<f64>,
-    /// The run's states at `t` (flat).
-    pub(super) fine: Vec<f64>,
-    /// The checking run's (step 2h) states at `t`, for a verified solve.
-    pub(super) coarse: Option<Vec<f64>>,
-    /// 2^q − 1, q the observed order: the Richardson divisor.
-    pub(super) divisor: f64,
+    /// The answer's states at `t` (flat).
+    pub(super) answer: Vec<f64>,
+    /// The check's states at `t` (flat), for a verified solve.
+    pub(super) check: Option<Vec<f64>>,
     /// Steps taken by [`Solution::at`] and their evaluations of g.
     pub(super) evals: Cell<(usize, usize)>,
-    /// For a verified solve: y' = Ay + g(y) at `t` (flat), for Hermite interpolation.
-    pub(super) deriv: Vec<f64>,
-    /// For a verified solve: the estimate at each grid point (tolerance units).
-    pub(super) grid_est: Vec<f64>,
-}
-
-impl<S> DenseData<S> {
-    /// The Hermite interpolant of the grid at `t` (between points `k` and `k + 1`) into `out`,
-    /// and its estimate in tolerance units: the difference to the interpolant on the stencil
-    /// shifted by one point (each way, where it exists) plus the larger estimate of the two
-    /// grid points around t. `None` where the grid is too short to check an interpolant.
-    fn hermite(&self, k: usize, t: f64, out: &mut [f64]) -> Option<f64> {
-        const MAX: usize = 16;
-        let n = self.t.len();
-        let d = out.len();
-        if self.deriv.len() != n * d || self.grid_est.len() != n || n < 3 || k + 1 >= n {
-            return None;
-        }
-        let width = super::trail::stencil_width(self.r).min(n - 1).min(MAX);
-        let first = super::hermite::stencil(k, n - 1, width);
-        let h = self.t[k + 1] - self.t[k];
-        if h <= 0.0 {
-            return None;
-        }
-        let tc = self.t[k];
-        let x = (t - tc) / h;
-        let eval = |first: usize, out: &mut [f64]| {
-            let (mut xs, mut a, mut b) = ([0.0; MAX], [0.0; MAX], [0.0; MAX]);
-            for (j, xj) in xs[..width].iter_mut().enumerate() {
-                *xj = (self.t[first + j] - tc) / h;
-            }
-            super::hermite::weights(&xs[..width], x, &mut a[..width], &mut b[..width]);
-            out.fill(0.0);
-            for j in 0..width {
-                let p = (first + j) * d;
-                let (aj, bj) = (a[j], h * b[j]);
-                let (y, f) = (&self.fine[p..p + d], &self.deriv[p..p + d]);
-                for ((o, yv), fv) in out.iter_mut().zip(y).zip(f) {
-                    *o += aj * yv + bj * fv;
-                }
-            }
-        };
-        eval(first, out);
-        let later = (first + width < n).then_some(first + 1);
-        let earlier = first.checked_sub(1);
-        if later.is_none() && earlier.is_none() {
-            return None;
-        }
-        let (rtol, atol) = self.tolerance;
-        // The second interpolant: on the stack for a small system (no allocation per call).
-        let mut stack = [0.0; MAX];
-        let mut heap = Vec::new();
-        let other: &mut [f64] = if d <= MAX {
-            &mut stack[..d]
-        } else {
-            heap.resize(d, 0.0);
-            &mut heap
-        };
-        let mut interp = 0.0_f64;
-        for f0 in later.into_iter().chain(earlier) {
-            eval(f0, other);
-            let e = other
-                .iter()
-                .zip(out.iter())
-                .map(|(o, v)| (o - v).abs() / (atol + rtol * v.abs()))
-                .fold(0.0, |m: f64, e| if e > m || e.is_nan() { e } else { m });
-            interp = if e.is_nan() { e } else { interp.max(e) };
-        }
-        Some(interp + self.grid_est[k].max(self.grid_est[k + 1]))
-    }
 }
 
 impl<S> Clone for DenseData<S> {
@@ -254,13 +178,9 @@ impl<S> Clone for DenseData<S> {
             settings: self.settings,
             tolerance: self.tolerance,
             t: self.t.clone(),
-            h: self.h.clone(),
-            fine: self.fine.clone(),
-            coarse: self.coarse.clone(),
-            divisor: self.divisor,
+            answer: self.answer.clone(),
+            check: self.check.clone(),
             evals: self.evals.clone(),
-            deriv: self.deriv.clone(),
-            grid_est: self.grid_est.clone(),
         }
     }
 }
@@ -273,7 +193,6 @@ impl<S> Clone for Solution<S> {
             energy: self.energy.clone(),
             error_estimates: self.error_estimates.clone(),
             error_estimate: self.error_estimate,
-            observed_order: self.observed_order,
             events: self.events.clone(),
             status: self.status,
             stats: self.stats,
@@ -312,7 +231,6 @@ impl<S> Solution<S> {
             energy: self.energy,
             error_estimates: self.error_estimates,
             error_estimate: self.error_estimate,
-            observed_order: self.observed_order,
             events: self.events,
             status: self.status,
             stats: self.stats,
@@ -357,11 +275,9 @@ impl<S> Solution<S> {
 impl<S: System> Solution<S> {
     /// The solution at any time of the integrated span, up to where the solution's times end
     /// (needs [`Options::dense_output`](super::Options::dense_output)): the grid value on the
-    /// grid; for a verified solve, the Hermite interpolant of the grid states and their
-    /// derivatives around t where its estimate (the difference to the interpolant on the
-    /// shifted stencil, plus the grid points' estimates) is within the tolerance; else the
-    /// run's method stepped from the grid point before t (two steps of half the distance; for
-    /// a verified solve the checking run's value there too, one step, gives the estimate).
+    /// grid; between grid points one step of the answer's method from the grid point before t,
+    /// and for a verified solve one step of its check's from the check's state there, whose
+    /// difference (with the modelled round-off) is the estimate at t.
     ///
     /// # Errors
     /// [`Error::InvalidInput`] without dense output or for t outside the integrated span,
@@ -390,7 +306,9 @@ impl<S: System> Solution<S> {
                 found: out.len(),
             });
         }
-        let first = dense.t[0];
+        let Some(&first) = dense.t.first() else {
+            return Err(Error::InvalidInput("the solution has no grid".into()));
+        };
         // The integrated span ends where the solution's times end (a terminal event or an
         // observer's stop between grid points included), not at the last grid point.
         let last = self
@@ -405,9 +323,9 @@ impl<S: System> Solution<S> {
             )));
         }
         let k = dense.t.partition_point(|&tk| tk <= t).saturating_sub(1);
-        let fine = &dense.fine[k * d..(k + 1) * d];
+        let answer = &dense.answer[k * d..(k + 1) * d];
+        out.copy_from_slice(answer);
         if dense.t[k] == t {
-            out.copy_from_slice(fine);
             return Ok(());
         }
         let dt = t - dense.t[k];
@@ -416,47 +334,38 @@ impl<S: System> Solution<S> {
         {
             // Within the rounding of time of the grid point (a step of it would round to
             // nothing): the grid state moved along the vector field.
-            out.copy_from_slice(fine);
-            return super::run::drift(&*dense.system, out, dt);
+            return super::runs::drift(&*dense.system, out, dt);
         }
-        // A verified solve: the grid's Hermite interpolant where its estimate is within the
-        // tolerance (no step, no φ-bank); else the method's steps below.
-        if let Some(e) = dense.hermite(k, t, out) {
-            if e <= 1.0 {
-                return Ok(());
+        let cache = Arc::new(super::SolveCache::<S>::new(4));
+        let check = dense.check.as_deref();
+        let mut runs = super::runs::PairRuns::new(
+            &*dense.system,
+            dense.r,
+            check.is_some(),
+            dt,
+            SolverSettings {
+                predictor: crate::stepper::Predictor::Constant,
+                ..dense.settings
+            },
+            &cache,
+        )?;
+        let mut cost = super::runs::Cost::default();
+        let mut check_out =
+            check.map_or_else(|| answer.to_vec(), |c| c[k * d..(k + 1) * d].to_vec());
+        super::runs::Runs::step(&mut runs, out, &mut check_out, &mut cost)?;
+        let (n, g) = dense.evals.get();
+        dense
+            .evals
+            .set((n + cost.total_steps(), g + cost.total_g_evals()));
+        if check.is_some() {
+            let (rtol, atol) = dense.tolerance;
+            let unit = f64::EPSILON.max(dense.settings.tolerance / 5.0);
+            let e = super::window::estimate((rtol, atol), unit, out, &check_out, k + 1);
+            if e.is_nan() || e > 1.0 {
+                return Err(Error::Unverified(format!(
+                    "the estimated error at t = {t:?} is {e:.3e} times the tolerance"
+                )));
             }
-        }
-        let cache = std::sync::Arc::new(super::SolveCache::<S>::new(2));
-        let mut step = DenseStep::new(&*dense.system, dense.r, dense.settings, &cache);
-        let (mut n, mut g) = dense.evals.get();
-        let Some(coarse) = &dense.coarse else {
-            let rep = step.advance(fine, dt, 1, out)?;
-            dense.evals.set((n + rep.0, g + rep.1));
-            return Ok(());
-        };
-        let rep = step.advance(fine, dt, 2, out)?;
-        n += rep.0;
-        g += rep.1;
-        let mut check = vec![0.0; d];
-        let rep = step.advance(&coarse[k * d..(k + 1) * d], dt, 1, &mut check)?;
-        dense.evals.set((n + rep.0, g + rep.1));
-        let (rtol, atol) = dense.tolerance;
-        let e = check
-            .iter()
-            .zip(out.iter())
-            .map(|(c, f)| {
-                let diff = (c - f).abs() / dense.divisor;
-                if diff == 0.0 {
-                    0.0
-                } else {
-                    diff / (atol + rtol * f.abs())
-                }
-            })
-            .fold(0.0, f64::max);
-        if e.is_nan() || e > 1.0 {
-            return Err(Error::Unverified(format!(
-                "the estimated error at t = {t:?} is {e:.3e} times the tolerance"
-            )));
         }
         Ok(())
     }

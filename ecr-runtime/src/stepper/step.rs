@@ -139,20 +139,6 @@ impl<S: System, B: Buffers> Stepper<RuntimeKernel, S, B> {
         check_settings(&settings)?;
         Self::from_kernel(RuntimeKernel::new(r, s)?, system, h, settings)
     }
-
-    /// [`with_nodes`](Self::with_nodes) sharing its banks through `cache` (see
-    /// [`BankCache`]).
-    pub(crate) fn with_nodes_cached(
-        system: S,
-        (r, s): (usize, usize),
-        h: f64,
-        settings: SolverSettings,
-        cache: &Arc<BankCache<Bank<S>>>,
-    ) -> Result<Self> {
-        check_settings(&settings)?;
-        let kernel = RuntimeKernel::new(r, s)?;
-        Self::from_kernel_cached(kernel, system, h, settings, Some(Arc::clone(cache)))
-    }
 }
 
 impl<K: FixedKernel, S: System, B: Buffers> Stepper<K, S, B> {
@@ -314,26 +300,6 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
         self.theta = 1.0;
         self.guess = GuessBackoff::FRESH;
         Ok(())
-    }
-
-    /// Changes the state between two steps, `y[i] = change(i, y[i])`, as if the last step had
-    /// returned the changed state: the next step still continues the last one (its predictor
-    /// and its compensated update), where it would have continued from `y`.
-    pub(crate) fn perturb_state(
-        &mut self,
-        y: &mut [f64],
-        mut change: impl FnMut(usize, f64) -> f64,
-    ) {
-        let continuing = self.have_previous;
-        self.buf.with_parts(|parts| {
-            let cont = continuing && *parts.last == *y;
-            for (i, v) in y.iter_mut().enumerate() {
-                *v = change(i, *v);
-            }
-            if cont {
-                parts.last.copy_from_slice(y);
-            }
-        });
     }
 
     /// The step size.

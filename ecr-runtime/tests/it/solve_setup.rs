@@ -1,6 +1,7 @@
-//! Set-up once: a solve builds the φ-bank of each step size once, whatever uses it (pilots,
-//! attempts, checking runs, a last step shortened by rounding), and a fixed run builds one bank
-//! for its step size (and one for a last step that the step size does not divide).
+//! Set-up once: a solve builds the φ-bank of each step size and kernel (the answer's Gauss
+//! points, the check's Lobatto points) once, whatever uses it (pilots, attempts, windows
+//! integrated again, a last step shortened by rounding), and a fixed run builds one bank for its
+//! step size (and one for a last step that the step size does not divide).
 //!
 //! The operator below is a dense matrix that counts and records the step sizes of the kernel
 //! banks built from it.
@@ -13,11 +14,12 @@ use ecr_runtime::solve::{Options, Problem};
 use ecr_runtime::system::{Semilinear, System};
 use nalgebra::DMatrix;
 
-/// A dense operator that records the step size of every kernel bank built from it.
+/// A dense operator that records the step size and the nodes of every kernel bank built from
+/// it.
 struct Counting {
     inner: Dense,
     builds: AtomicUsize,
-    steps: Mutex<Vec<f64>>,
+    steps: Mutex<Vec<(f64, Vec<f64>)>>,
 }
 
 impl Counting {
@@ -29,10 +31,21 @@ impl Counting {
         }
     }
 
-    /// (banks built, distinct step sizes among them).
+    /// (banks built, distinct (step size, nodes) among them).
     fn counts(&self) -> (usize, usize) {
-        let mut hs = self.steps.lock().unwrap().clone();
-        hs.sort_by(f64::total_cmp);
+        let mut hs: Vec<Vec<u64>> = self
+            .steps
+            .lock()
+            .unwrap()
+            .iter()
+            .map(|(h, taus)| {
+                std::iter::once(*h)
+                    .chain(taus.iter().copied())
+                    .map(f64::to_bits)
+                    .collect()
+            })
+            .collect();
+        hs.sort();
         hs.dedup();
         (self.builds.load(Ordering::Relaxed), hs.len())
     }
@@ -51,7 +64,7 @@ impl LinearOperator for Counting {
     }
     fn kernel_bank(&self, h: f64, taus: &[f64], n: usize) -> ecr_runtime::Result<DenseBank> {
         self.builds.fetch_add(1, Ordering::Relaxed);
-        self.steps.lock().unwrap().push(h);
+        self.steps.lock().unwrap().push((h, taus.to_vec()));
         self.inner.kernel_bank(h, taus, n)
     }
 }
@@ -74,7 +87,7 @@ fn a_solve_builds_each_bank_once() {
         assert!(sol.stats.steps > 0);
         assert_eq!(
             builds, distinct,
-            "tol {tol:e}: {builds} banks built for {distinct} step sizes"
+            "tol {tol:e}: {builds} banks built for {distinct} step sizes and kernels"
         );
     }
 }

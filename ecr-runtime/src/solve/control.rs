@@ -1,0 +1,589 @@
+//! The controller of a solve: the pilot that chooses the order and the first step size, the
+//! run in windows with the decision after each (keep it, or integrate it again with a smaller
+//! step), the step size of the next window, and the run started again when the estimate cannot
+//! be kept within the tolerance otherwise. It sees the runs through [`Runs`] only, so it is
+//! compiled once, not once per system.
+
+use super::pilot::pilot;
+use super::record::{Observer, Point, Record, cost_since};
+use super::runs::{Cost, Make, Runs};
+use super::solution::{Stats, Status};
+use super::window::{
+    Ctx, GridPoint, LIMIT, P_BOLD, State, StepFailure, TARGET, advance, check_order, keep,
+    resolution, start_outputs,
+};
+use crate::error::{Error, Result};
+
+/// Steps per window.
+const WINDOW: usize = 8;
+
+/// Runs started again from t₀ before the solve gives up.
+const MAX_RESTARTS: usize = 4;
+
+/// Failed steps in a row (with ever smaller steps) before the solve gives up.
+const STUCK_LIMIT: usize = 8;
+
+/// A window is integrated again at most this often (while a smaller step brings its estimate
+/// down) before the run starts again.
+const MAX_WINDOW_TRIES: usize = 24;
+
+/// The estimate's rate of growth is read off the windows of the last 1/RECENT of the span.
+const RECENT: f64 = 16.0;
+
+/// The least number of windows over the span.
+const WINDOWS_MIN: f64 = 32.0;
+
+/// The order by which a restart scales its step size.
+const P_RESTART: f64 = 4.0;
+
+/// Step sizes are taken from the ladder h₀·2^(k/LADDER): a step size met again finds its
+/// banks in the cache.
+const LADDER: f64 = 8.0;
+
+/// With an observer, the steps of a run are held until it is kept whole (so that a run started
+/// again shows nothing twice), up to this many numbers of their states (32 MiB).
+const OBSERVER_HOLD: usize = 1 << 22;
+
+/// How a run ended.
+pub(super) struct Outcome {
+    pub(super) record: Record,
+    pub(super) r: usize,
+    pub(super) stats: Stats,
+    /// Why the answer is not verified, if it is not.
+    pub(super) unverified: Option<String>,
+}
+
+/// How an attempt ended.
+enum Attempt {
+    /// At the end of the span (or a terminal event, or the observer's stop).
+    Done(Record),
+    /// The estimate cannot be kept within the tolerance by smaller steps from here on: start
+    /// again, aiming lower by `factor`.
+    Again {
+        record: Record,
+        factor: f64,
+        /// Where the estimate passed the tolerance, or where the projection said it would not
+        /// last.
+        at: f64,
+        /// The modelled round-off there, in units of the tolerance.
+        noise: f64,
+        reason: String,
+    },
+    /// Stuck or out of steps: the best solution so far and why.
+    Failed { record: Record, reason: String },
+}
+
+/// The step of the ladder at or below h.
+fn on_ladder(h: f64, base: f64) -> f64 {
+    let k = (LADDER * (h / base).log2()).floor();
+    let q = base * (k / LADDER).exp2();
+    // Never above h (rounding of the powers).
+    if q > h { h } else { q }
+}
+
+/// A solve to a tolerance: the pilot, then the run, started again where it must be.
+///
+/// # Errors
+/// Failures that leave no solution (bad options found late, a bank that cannot be built).
+pub(super) fn verified(
+    ctx: &Ctx<'_>,
+    make: &mut Make<'_, '_>,
+    observer: &mut Observer<'_>,
+) -> Result<Outcome> {
+    let mut outcome = attempts(ctx, make, observer)?;
+    // The observer sees the steps of the run that is returned (those it has not seen yet).
+    outcome.record.show(observer);
+    Ok(outcome)
+}
+
+/// The pilot and the runs of [`verified`], started again where they must be.
+fn attempts(
+    ctx: &Ctx<'_>,
+    make: &mut Make<'_, '_>,
+    observer: &mut Observer<'_>,
+) -> Result<Outcome> {
+    let options = ctx.options;
+    let (lo, hi) = options.answer_orders()?;
+    let mut stats = Stats::default();
+    let span = ctx.t_end - ctx.t0;
+    if span <= ctx.same_time {
+        // Nothing to integrate: y₀ (moved along the field within the rounding of time).
+        let mut runs = make(lo, true, span.max(f64::MIN_POSITIVE))?;
+        let record = trivial(ctx, &mut *runs)?;
+        return Ok(Outcome {
+            record,
+            r: lo,
+            stats,
+            unverified: None,
+        });
+    }
+    let (r, mut h) = pilot(ctx, make, lo, hi, &mut stats)?;
+    let mut last_reason = String::new();
+    // The step and the time at which the last attempt failed.
+    let mut failed_at: Option<(f64, f64)> = None;
+    for attempt in 0..=MAX_RESTARTS {
+        options.say(|| format!("run: EC{r}P checked by EC{}P-Lobatto, h = {h:.6e}", r - 1));
+        let mut runs = make(r, true, h)?;
+        match run(ctx, &mut *runs, r, h, false, observer, &mut stats)? {
+            Attempt::Done(record) => {
+                let worst = record.worst();
+                let unverified = (worst.is_nan() || worst > LIMIT).then(|| {
+                    format!("the estimated error reaches {worst:.3e} times the tolerance")
+                });
+                return Ok(Outcome {
+                    record,
+                    r,
+                    stats,
+                    unverified,
+                });
+            }
+            Attempt::Again {
+                record,
+                factor,
+                at,
+                noise,
+                reason,
+            } => {
+                options.say(|| format!("start again: {reason}"));
+                // Smaller steps that make the estimate pass the tolerance no later: rounding,
+                // which grows with the number of steps, not the error of the methods.
+                let rounding = failed_at.is_some_and(|(h_before, at_before)| {
+                    h < h_before && at <= at_before * 1.05 && at < ctx.t_end && noise >= 0.01
+                });
+                let why = if rounding {
+                    let (h_before, at_before) = failed_at.expect("checked above");
+                    Some(format!(
+                        "the tolerance is at the round-off floor of this problem: with smaller \
+                         steps the runs' difference reaches it sooner (at t = {at:?} with h = \
+                         {h:.3e}, at t = {at_before:?} with h = {h_before:.3e}), so rounding, not \
+                         the methods' error, sets it; ask for a larger tolerance"
+                    ))
+                } else if record.shown {
+                    Some(format!(
+                        "{reason} (the observer had seen the run, so it was not started again)"
+                    ))
+                } else if attempt == MAX_RESTARTS {
+                    Some(format!(
+                        "{reason}; after {MAX_RESTARTS} runs started again with smaller steps the \
+                         estimate still passes the tolerance: the flow amplifies what the two runs \
+                         differ by, their rounding included (chaos, a separatrix, or a tolerance \
+                         near the round-off floor)"
+                    ))
+                } else {
+                    None
+                };
+                if let Some(reason) = why {
+                    stats.discard(&record.cost);
+                    // The best solution: this step size over the whole span, every window kept,
+                    // with its estimates (some above the tolerance).
+                    let record = if record.shown {
+                        record
+                    } else {
+                        let mut runs = make(r, true, h)?;
+                        match run(ctx, &mut *runs, r, h, true, observer, &mut stats)? {
+                            Attempt::Done(record)
+                            | Attempt::Again { record, .. }
+                            | Attempt::Failed { record, .. } => record,
+                        }
+                    };
+                    return Ok(Outcome {
+                        record,
+                        r,
+                        stats,
+                        unverified: Some(reason),
+                    });
+                }
+                failed_at = Some((h, at));
+                stats.discard(&record.cost);
+                stats.retries += 1;
+                // The error made so far was too large: smaller steps from t₀, at least 30 %
+                // smaller (far from the asymptotic regime, where the cheapest runs are, the
+                // estimate falls more slowly than h^p).
+                h *= factor.clamp(1e-6, 1.0).powf(1.0 / P_RESTART).min(0.7);
+                last_reason = reason;
+            }
+            Attempt::Failed { record, reason } => {
+                return Ok(Outcome {
+                    record,
+                    r,
+                    stats,
+                    unverified: Some(reason),
+                });
+            }
+        }
+    }
+    unreachable!("the last attempt returns ({last_reason})")
+}
+
+/// The solution of a span within the rounding of time: y₀, moved along the field.
+fn trivial(ctx: &Ctx<'_>, runs: &mut dyn Runs) -> Result<Record> {
+    let mut record = Record::new(ctx.t0, ctx.t_end - ctx.t0);
+    let mut y = ctx.y0.to_vec();
+    let dt = ctx.t_end - ctx.t0;
+    if dt > 0.0 {
+        runs.drift(&mut y, dt)?;
+    }
+    let est = ctx.estimate(&y, &y, 0);
+    match &ctx.options.t_eval {
+        None => {
+            record.output(Point {
+                t: ctx.t0,
+                y: ctx.y0.to_vec(),
+                est,
+            })?;
+            if dt > 0.0 {
+                record.output(Point {
+                    t: ctx.t_end,
+                    y,
+                    est,
+                })?;
+            }
+        }
+        Some(ts) => {
+            for &t in ts {
+                let v = if t == ctx.t0 {
+                    ctx.y0.to_vec()
+                } else {
+                    y.clone()
+                };
+                record.output(Point { t, y: v, est })?;
+            }
+        }
+    }
+    if ctx.options.dense {
+        record.grid(ctx.t0, ctx.y0, ctx.y0)?;
+    }
+    Ok(record)
+}
+
+/// One run from t₀ at order 2r with the check, in windows of steps.
+///
+/// The step is the run's level `base`, constant unless the estimate says otherwise: the level
+/// makes the estimate, growing as it grew since the level last changed (from t₀: linearly from
+/// 0), end the span at [`TARGET`]; it is lowered for the rest of the span when that projection
+/// exceeds the tolerance (the run starts again from t₀ when that would take more than halving
+/// it). It is never raised: an estimate that grew slowly so far may grow fast later (the
+/// difference of two orbits shows at their close passages). A window whose estimate
+/// passes the tolerance is integrated again with a smaller step while that brings its growth
+/// per unit time down (the close passage of an orbit, a kink of g), and the windows after it
+/// return to the level by factors of √2: constant-step segments where the time scale of the
+/// solution changes.
+fn run(
+    ctx: &Ctx<'_>,
+    runs: &mut dyn Runs,
+    r: usize,
+    h0: f64,
+    permissive: bool,
+    observer: &mut Observer<'_>,
+    stats: &mut Stats,
+) -> Result<Attempt> {
+    let options = ctx.options;
+    let p = check_order(r);
+    let span = ctx.t_end - ctx.t0;
+    let max_step = options.max_step.min(span);
+    let ladder = h0;
+    let mut base = h0.min(max_step);
+    let mut h = on_ladder(base, ladder);
+    let mut state = ctx.start();
+    let mut record = Record::new(ctx.t0, h);
+    let mut ev_prev = options
+        .events
+        .iter()
+        .enumerate()
+        .map(|(k, e)| e.value(k, ctx.t0, ctx.y0))
+        .collect::<Result<Vec<_>>>()?;
+    let mut t_eval_next = 0;
+    start_outputs(ctx, &mut record, &mut t_eval_next)?;
+    if options.dense {
+        record.grid(ctx.t0, ctx.y0, ctx.y0)?;
+    }
+    let (mut stuck, mut retries) = (0usize, 0usize);
+    // The last failed step: where, with which step, why.
+    let mut failure: Option<(f64, f64, String)> = None;
+    // The growth of a window that was integrated again, to see whether a smaller step helped.
+    let mut rejected: Option<(f64, f64)> = None;
+    // Whether this window's retry was doubted once already; windows in a row integrated again.
+    let (mut doubted, mut strained) = (false, 0usize);
+    let with_observer = observer.is_some();
+    // Where the steps of the current size began, their size and how many were kept since.
+    let mut segment = (ctx.t0, f64::NAN, 0usize);
+    // When the run's level last changed, and the estimate then; the growth of the windows
+    // since, over the last 1/RECENT of the span.
+    let mut changed = (ctx.t0, 0.0_f64);
+    let mut recent: Vec<(f64, f64)> = Vec::new();
+    while state.t < ctx.t_end - ctx.same_time && !record.ended() {
+        let stop = ctx.next_stop(state.t);
+        let room = stop - state.t;
+        // A window is at most 1/WINDOWS_MIN of the span.
+        let steps_max = WINDOW.min(((span / WINDOWS_MIN / h).floor() as usize).max(1));
+        let (steps, hw, end) = if room <= steps_max as f64 * h * (1.0 + 1e-12) {
+            let k = ((room / h).ceil() as usize).max(1);
+            (k, room / k as f64, Some(stop))
+        } else {
+            (steps_max, h, None)
+        };
+        if hw <= resolution(state.t) {
+            let reason = match &failure {
+                Some((t, hf, why)) => {
+                    record.status = Some(Status::Failed { t: state.t });
+                    format!(
+                        "a step failed at t = {t:?} with h = {hf:e} ({why}), and the steps that \
+                         would pass it are below the resolution of time"
+                    )
+                }
+                None => format!(
+                    "the step size needed at t = {:?} ({hw:e}) is below the resolution of time",
+                    state.t
+                ),
+            };
+            return Ok(Attempt::Failed { record, reason });
+        }
+        if state.n + steps > options.max_steps {
+            return Ok(Attempt::Failed {
+                record,
+                reason: format!(
+                    "the run needs more than max_steps = {} steps (at t = {:?} with h = {hw:e})",
+                    options.max_steps, state.t
+                ),
+            });
+        }
+        runs.set_step_size(hw)?;
+        let origin = if hw == segment.1 {
+            (segment.0, segment.2)
+        } else {
+            (state.t, 0)
+        };
+        let mut cost = Cost::default();
+        let points = match advance(ctx, runs, &state, origin, steps, end, &mut cost) {
+            Ok(points) => points,
+            Err(StepFailure { t, h: hf, error }) => {
+                stats.discard(&cost);
+                stuck += 1;
+                options.say(|| format!("a step failed at t = {t:?} with h = {hf:e}: {error}"));
+                if stuck > STUCK_LIMIT {
+                    record.status = Some(Status::Failed { t });
+                    return Ok(Attempt::Failed {
+                        record,
+                        reason: format!(
+                            "a step failed at t = {t:?} {stuck} times with ever smaller steps \
+                             (down to h = {hf:e}): {error}"
+                        ),
+                    });
+                }
+                failure = Some((t, hf, error.to_string()));
+                h = on_ladder(hw / 4.0, ladder);
+                continue;
+            }
+        };
+        let last = points.last().expect("a window has a step");
+        let worst = points.iter().map(|q| q.est).fold(state.worst, f64::max);
+        let growth = worst - state.worst;
+        let duration = last.t - state.t;
+        // A window may not take the estimate past the tolerance, nor take more than half of what
+        // is left of it (a kink or a close passage would leave the rest of the span nothing).
+        let room = (LIMIT - state.worst).max(0.0);
+        let over = worst > LIMIT;
+        // A retry whose estimate fell by far more than the check's order allows: the two methods
+        // may err alike by chance at a kink of g in this window (their difference vanishes where
+        // their quadrature errors cross); once more with another step, which takes its estimate.
+        let rate_now = growth / duration;
+        let implausible = rejected
+            .is_some_and(|(g, hr)| hw < hr && rate_now < g * (hw / hr).powf(p + 2.0) && !doubted);
+        if implausible && retries < MAX_WINDOW_TRIES && !permissive {
+            stats.discard(&cost);
+            stats.retries += 1;
+            retries += 1;
+            doubted = true;
+            options.say(|| {
+                format!(
+                    "window at t = {:?}, h = {hw:.4e}: estimate fell from {:.3e} to {rate_now:.3e} per \
+                     unit time, more than the order explains → again with h × 0.7",
+                    state.t,
+                    rejected.map_or(0.0, |r| r.0)
+                )
+            });
+            h = on_ladder(hw * 0.7, ladder);
+            continue;
+        }
+        if (over || growth > 0.5 * room) && !permissive {
+            // A smaller step for this window while that brings its growth down. Compared per
+            // unit time: a smaller step also makes the window shorter, which lowers the growth
+            // of an error carried into it (amplified by the flow) as much as its duration, that
+            // of an error made in it by the order of the check besides.
+            let rate = growth / duration;
+            let helped = rejected.is_none_or(|(g, _)| rate < g * 0.7);
+            if helped && retries < MAX_WINDOW_TRIES && hw > resolution(state.t) * 16.0 {
+                stats.discard(&cost);
+                stats.retries += 1;
+                retries += 1;
+                rejected = Some((rate, hw));
+                let want = 0.25 * room;
+                let factor = if growth > 0.0 && want > 0.0 {
+                    (want / growth).powf(1.0 / p.min(P_BOLD)).clamp(0.125, 0.5)
+                } else {
+                    0.5
+                };
+                options.say(|| {
+                    format!(
+                        "window at t = {:?}, h = {hw:.4e}: estimate {worst:.3e} (growth \
+                         {growth:.3e}) → again with h × {factor:.3}",
+                        state.t
+                    )
+                });
+                h = on_ladder(hw * factor, ladder);
+                continue;
+            }
+            if over {
+                stats.discard(&cost);
+                let elapsed = (last.t - ctx.t0).max(duration);
+                let projected = worst.max(LIMIT) * (span / elapsed).max(1.0);
+                return Ok(Attempt::Again {
+                    record,
+                    factor: TARGET / projected,
+                    at: last.t,
+                    noise: ctx.noise(&last.answer, state.n + points.len()),
+                    reason: format!(
+                        "the estimate reaches {worst:.3e} times the tolerance at t = {:?} and a \
+                         smaller step for that stretch does not bring it down",
+                        last.t
+                    ),
+                });
+            }
+        }
+        // Keep the window (unless its values between grid points are over the tolerance).
+        let mark = record.mark();
+        let (ev_save, t_eval_save) = (ev_prev.clone(), t_eval_next);
+        let start = GridPoint {
+            t: state.t,
+            answer: state.answer.clone(),
+            check: state.check.clone(),
+            est: state.worst,
+        };
+        let kept = keep(
+            ctx,
+            runs,
+            &mut record,
+            &start,
+            state.n,
+            &points,
+            &mut t_eval_next,
+            &mut ev_prev,
+            with_observer,
+        );
+        let failed_between = match &kept {
+            Ok(y) => (y.between > LIMIT && retries < MAX_WINDOW_TRIES && !permissive)
+                .then(|| format!("a value between grid points has estimate {:.3e}", y.between)),
+            Err(Error::InvalidInput(_)) => None,
+            Err(e) => Some(format!("a step between grid points failed: {e}")),
+        };
+        if let Some(why) = failed_between {
+            let spent = cost_since(&record, mark);
+            stats.discard(&cost);
+            stats.discard(&spent);
+            record.rollback(mark);
+            (ev_prev, t_eval_next) = (ev_save, t_eval_save);
+            retries += 1;
+            stuck += usize::from(kept.is_err());
+            options.say(|| format!("window at t = {:?}: {why} → again with h / 2", state.t));
+            if stuck > STUCK_LIMIT {
+                return Ok(Attempt::Failed {
+                    record,
+                    reason: format!("near t = {:?}: {why}", state.t),
+                });
+            }
+            h = on_ladder(hw / 2.0, ladder);
+            continue;
+        }
+        let yielded = kept?;
+        record.cost.add(&cost);
+        record.step_size_from(state.t, hw);
+        segment = (origin.0, hw, origin.1 + points.len());
+        // Windows integrated again in a row: the run's level is too high for the stretch, not
+        // one passage in it; the level comes down to twice the step that was kept.
+        strained = if rejected.is_some() { strained + 1 } else { 0 };
+        if strained >= 3 && base > 2.0 * hw {
+            base = 2.0 * hw;
+            strained = 0;
+        }
+        (stuck, retries, rejected, doubted) = (0, 0, None, false);
+        if failure.as_ref().is_some_and(|f| last.t > f.0) {
+            failure = None;
+        }
+        let worst = worst.max(yielded.between);
+        state = State {
+            t: yielded.terminal.map_or(last.t, |(_, t)| t),
+            n: state.n + points.len(),
+            worst,
+            answer: last.answer.clone(),
+            check: last.check.clone(),
+        };
+        // The observer sees the run once it is kept whole, unless holding its steps till then
+        // would take more than OBSERVER_HOLD numbers (from then on the run is not started again).
+        if with_observer && record.unshown.len().saturating_mul(ctx.y0.len().max(1)) > OBSERVER_HOLD
+        {
+            record.show(observer);
+        }
+        if record.ended() || ctx.t_end - state.t <= ctx.same_time {
+            break;
+        }
+        // The run's level: the estimate projected to t_end at the rate it grew over the recent
+        // windows since the level last changed, without the largest growth of one window (a
+        // kink or a close passage adds to the estimate once, it does not set its rate).
+        recent.push((state.t, growth));
+        let since = changed.0.max(state.t - span / RECENT);
+        recent.retain(|&(t, _)| t > since);
+        let elapsed = state.t - changed.0;
+        let left = ctx.t_end - state.t;
+        let (sum, top) = recent
+            .iter()
+            .fold((0.0, 0.0_f64), |(s, m), w| (s + w.1, m.max(w.1)));
+        let duration = state.t - since;
+        let rate = if recent.len() >= 3 { sum - top } else { sum } / duration;
+        let projected = worst + rate * left;
+        if projected > LIMIT && elapsed >= span / 32.0 && !permissive {
+            let budget = 0.95 * LIMIT - worst;
+            let factor = if budget > 0.0 {
+                (budget / (rate * left)).powf(1.0 / p.min(P_BOLD))
+            } else {
+                0.0
+            };
+            if factor < 0.125 && !record.shown {
+                return Ok(Attempt::Again {
+                    record,
+                    factor: TARGET / projected,
+                    at: ctx.t_end,
+                    noise: 0.0,
+                    reason: format!(
+                        "the estimate, {worst:.3e} times the tolerance at t = {:?}, projects to \
+                         {projected:.3e} at t_end",
+                        state.t
+                    ),
+                });
+            }
+            let factor = factor.clamp(0.125, 1.0);
+            if factor < 0.95 {
+                base *= factor;
+                changed = (state.t, worst);
+                recent.clear();
+                options.say(|| {
+                    format!(
+                        "t = {:?}: projection {projected:.3e} → level × {factor:.3}",
+                        state.t
+                    )
+                });
+            }
+        }
+        // Back towards the run's level after a window integrated again with a smaller step.
+        h = on_ladder(
+            base.min(max_step).min(std::f64::consts::SQRT_2 * hw),
+            ladder,
+        );
+        options.say(|| {
+            format!(
+                "kept t = {:?} h = {hw:.4e} base {base:.4e} estimate {worst:.3e} → h = {h:.4e}",
+                state.t
+            )
+        });
+    }
+    Ok(Attempt::Done(record))
+}

@@ -1,0 +1,271 @@
+//! The runs of a solve on one step sequence: the answer, Gauss EC(r)P of order 2r, and for a
+//! verified solve its check, ECr−1P of order 2r − 2 on the r Gauss–Lobatto points of the step
+//! (its ends included). Both take every step of the same size from their own states, so every
+//! grid point is a meeting point: the difference of the two there estimates the error of the
+//! check, and bounds that of the answer.
+//!
+//! The controller sees them through the [`Runs`] trait, without the system's type: only this
+//! file and the stepper are compiled once per system.
+
+use std::sync::Arc;
+
+use super::SolveCache;
+use crate::error::{Error, Result};
+use crate::operator::LinearOperator;
+use crate::stepper::{EcStepper, Predictor, RuntimeKernel, SolverSettings, StepReport};
+use crate::system::System;
+use crate::tables::QuadratureKind;
+
+/// What the steps of a stretch cost: the answer's steps, the check's, and the steps to values
+/// between grid points (outputs, events), each with their evaluations of g.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(super) struct Cost {
+    pub(super) steps: usize,
+    pub(super) g_evals: usize,
+    pub(super) sweeps: usize,
+    pub(super) check_steps: usize,
+    pub(super) check_g_evals: usize,
+    pub(super) dense_steps: usize,
+    pub(super) dense_g_evals: usize,
+}
+
+impl Cost {
+    pub(super) fn add(&mut self, c: &Cost) {
+        self.steps += c.steps;
+        self.g_evals += c.g_evals;
+        self.sweeps += c.sweeps;
+        self.check_steps += c.check_steps;
+        self.check_g_evals += c.check_g_evals;
+        self.dense_steps += c.dense_steps;
+        self.dense_g_evals += c.dense_g_evals;
+    }
+
+    pub(super) fn total_steps(&self) -> usize {
+        self.steps + self.check_steps + self.dense_steps
+    }
+
+    pub(super) fn total_g_evals(&self) -> usize {
+        self.g_evals + self.check_g_evals + self.dense_g_evals
+    }
+}
+
+/// The two runs of a solve (or the one run of a fixed method), stepping states the caller
+/// holds.
+pub(super) trait Runs {
+    /// The step size of the grid steps.
+    fn step_size(&self) -> f64;
+    /// Sets the step size of both runs (their banks for it are built or taken from the cache).
+    ///
+    /// # Errors
+    /// What building a bank reports.
+    fn set_step_size(&mut self, h: f64) -> Result<()>;
+    /// One step of the answer from `ya` and of the check from `yc`, both in place.
+    ///
+    /// # Errors
+    /// What a stepper reports (the states may then be anything: the caller restores them).
+    fn step(&mut self, ya: &mut [f64], yc: &mut [f64], cost: &mut Cost) -> Result<()>;
+    /// The values of the runs `dt` (≤ the step size) after the grid states `ya`, `yc`: one
+    /// step of size dt of each method (the check's only if there is one).
+    ///
+    /// # Errors
+    /// What a stepper reports.
+    fn partial(
+        &mut self,
+        from: (&[f64], &[f64]),
+        dt: f64,
+        out: (&mut [f64], &mut [f64]),
+        cost: &mut Cost,
+    ) -> Result<()>;
+    /// `y` moved along the vector field by `dt`, for a time within the rounding of a grid
+    /// point's (a step that short would round to nothing).
+    ///
+    /// # Errors
+    /// [`Error::NonFinite`] if the field is not finite there.
+    fn drift(&self, y: &mut [f64], dt: f64) -> Result<()>;
+}
+
+/// Makes the runs of order r (with or without the check) at step h.
+pub(super) type Make<'m, 's> = dyn FnMut(usize, bool, f64) -> Result<Box<dyn Runs + 's>> + 'm;
+
+/// The answer's kernel: Gauss–Legendre, r moments on r points.
+pub(super) fn answer_kernel(r: usize) -> Result<RuntimeKernel> {
+    RuntimeKernel::new(r, r)
+}
+
+/// The check's kernel: r − 1 moments on the r Gauss–Lobatto points (c = 0 and c = 1 among
+/// them), so that it sees g at the ends of every step, where the answer's Gauss points do not
+/// look (a kink of g just after a grid point lies before all of them).
+pub(super) fn check_kernel(r: usize) -> Result<RuntimeKernel> {
+    RuntimeKernel::with_quadrature(QuadratureKind::GaussLobatto, r - 1, r)
+}
+
+/// The runs of a solve of `S`: the answer's stepper and the check's, and their copies for
+/// values between grid points (started from the grid state, no predictor).
+pub(super) struct PairRuns<'a, S: System> {
+    system: &'a S,
+    answer: EcStepper<&'a S>,
+    check: Option<EcStepper<&'a S>>,
+    between: Option<(EcStepper<&'a S>, Option<EcStepper<&'a S>>)>,
+    r: usize,
+    settings: SolverSettings,
+    cache: Arc<SolveCache<S>>,
+}
+
+impl<'a, S: System> PairRuns<'a, S> {
+    /// The answer of order 2r at step h and, with `check`, its check.
+    ///
+    /// # Errors
+    /// What building the steppers reports (r out of range, the banks).
+    pub(super) fn new(
+        system: &'a S,
+        r: usize,
+        check: bool,
+        h: f64,
+        settings: SolverSettings,
+        cache: &Arc<SolveCache<S>>,
+    ) -> Result<Self> {
+        let answer = EcStepper::from_kernel_cached(
+            answer_kernel(r)?,
+            system,
+            h,
+            settings,
+            Some(Arc::clone(cache)),
+        )?;
+        let check = if check {
+            Some(EcStepper::from_kernel_cached(
+                check_kernel(r)?,
+                system,
+                h,
+                settings,
+                Some(Arc::clone(cache)),
+            )?)
+        } else {
+            None
+        };
+        Ok(PairRuns {
+            system,
+            answer,
+            check,
+            between: None,
+            r,
+            settings,
+            cache: Arc::clone(cache),
+        })
+    }
+
+    /// The steppers for values between grid points, built at step `dt` the first time.
+    fn between(&mut self, dt: f64) -> Result<&mut (EcStepper<&'a S>, Option<EcStepper<&'a S>>)> {
+        let settings = SolverSettings {
+            predictor: Predictor::Constant,
+            ..self.settings
+        };
+        if self.between.is_none() {
+            let cache = Some(Arc::clone(&self.cache));
+            let answer = EcStepper::from_kernel_cached(
+                answer_kernel(self.r)?,
+                self.system,
+                dt,
+                settings,
+                cache.clone(),
+            )?;
+            let check = match self.check {
+                Some(_) => Some(EcStepper::from_kernel_cached(
+                    check_kernel(self.r)?,
+                    self.system,
+                    dt,
+                    settings,
+                    cache,
+                )?),
+                None => None,
+            };
+            self.between = Some((answer, check));
+        }
+        let pair = self.between.as_mut().expect("built above");
+        pair.0.set_step_size(dt)?;
+        if let Some(c) = &mut pair.1 {
+            c.set_step_size(dt)?;
+        }
+        Ok(pair)
+    }
+}
+
+fn answer_cost(cost: &mut Cost, rep: &StepReport) {
+    cost.steps += 1;
+    cost.g_evals += rep.g_evals;
+    cost.sweeps += rep.sweeps;
+}
+
+fn check_cost(cost: &mut Cost, rep: &StepReport) {
+    cost.check_steps += 1;
+    cost.check_g_evals += rep.g_evals;
+}
+
+impl<S: System> Runs for PairRuns<'_, S> {
+    fn step_size(&self) -> f64 {
+        self.answer.step_size()
+    }
+
+    fn set_step_size(&mut self, h: f64) -> Result<()> {
+        self.answer.set_step_size(h)?;
+        if let Some(c) = &mut self.check {
+            c.set_step_size(h)?;
+        }
+        Ok(())
+    }
+
+    fn step(&mut self, ya: &mut [f64], yc: &mut [f64], cost: &mut Cost) -> Result<()> {
+        let rep = self.answer.step(ya)?;
+        answer_cost(cost, &rep);
+        if let Some(c) = &mut self.check {
+            let rep = c.step(yc)?;
+            check_cost(cost, &rep);
+        }
+        Ok(())
+    }
+
+    fn partial(
+        &mut self,
+        (ya, yc): (&[f64], &[f64]),
+        dt: f64,
+        (oa, oc): (&mut [f64], &mut [f64]),
+        cost: &mut Cost,
+    ) -> Result<()> {
+        oa.copy_from_slice(ya);
+        oc.copy_from_slice(yc);
+        let (answer, check) = self.between(dt)?;
+        let rep = answer.step(oa)?;
+        cost.dense_steps += 1;
+        cost.dense_g_evals += rep.g_evals;
+        if let Some(c) = check {
+            let rep = c.step(oc)?;
+            cost.dense_steps += 1;
+            cost.dense_g_evals += rep.g_evals;
+        }
+        Ok(())
+    }
+
+    fn drift(&self, y: &mut [f64], dt: f64) -> Result<()> {
+        drift(self.system, y, dt)
+    }
+}
+
+/// `y += dt (Ay + g(y))`: for a time within the rounding of a grid point's.
+///
+/// # Errors
+/// [`Error::NonFinite`] if the increment is not finite.
+pub(super) fn drift<S: System>(system: &S, y: &mut [f64], dt: f64) -> Result<()> {
+    let d = y.len();
+    let mut f = vec![0.0; d];
+    let mut g = vec![0.0; d];
+    let mut scratch = vec![0.0; system.scratch_len()];
+    system.linear().apply(y, &mut f);
+    system.nonlinear(y, &mut g, &mut scratch);
+    for ((v, a), b) in y.iter_mut().zip(&f).zip(&g) {
+        let dy = dt * (a + b);
+        if !dy.is_finite() {
+            return Err(Error::NonFinite("the vector field at the end of the span"));
+        }
+        *v += dy;
+    }
+    Ok(())
+}

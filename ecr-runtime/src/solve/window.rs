@@ -1,0 +1,424 @@
+//! A window of the run: a few steps of both runs at one step size from where the run stands,
+//! with the estimate at every grid point; and, once the controller keeps it, what the window
+//! gives the solution: outputs (at every step, or at the `t_eval` times inside it), located
+//! events, the grid for dense output, and the steps for the observer.
+
+use super::options::Options;
+use super::record::{Point, Record};
+use super::runs::{Cost, Runs};
+use super::solution::Status;
+use crate::error::{Error, Result};
+
+/// The controller aims the estimate at the end of the span at this share of the tolerance.
+pub(super) const TARGET: f64 = 0.5;
+
+/// An estimate above this (the tolerance) anywhere is not kept.
+pub(super) const LIMIT: f64 = 1.0;
+
+/// The largest order by which a step size is scaled when a window is integrated again or the
+/// run starts again: far from the asymptotic regime (the large steps of a high order) the
+/// estimate does not fall like h^p, and a bolder exponent would shrink the step too little.
+pub(super) const P_BOLD: f64 = 6.0;
+
+/// The order the check shows: 2(r − 1).
+pub(super) fn check_order(r: usize) -> f64 {
+    (2 * (r - 1)) as f64
+}
+
+/// The resolution of time at t: a step below it could not advance the clock.
+pub(super) fn resolution(t: f64) -> f64 {
+    crate::integrate::StepPlan::TIME_ULPS * f64::EPSILON * t.abs()
+}
+
+/// The round-off model of the estimate: every step rounds each component by this many units of
+/// max(ε, the stage tolerance / 5) of the largest component (the propagator and the stage sums
+/// mix the components), and the roundings add up like a random walk.
+const NOISE: f64 = 2.0;
+
+/// Where the runs stand: the time, the answer's steps since t₀, the largest estimate so far,
+/// the states.
+#[derive(Clone, Debug)]
+pub(super) struct State {
+    pub(super) t: f64,
+    pub(super) n: usize,
+    pub(super) worst: f64,
+    pub(super) answer: Vec<f64>,
+    pub(super) check: Vec<f64>,
+}
+
+/// A grid point of a window: its time, both states and the estimate there.
+#[derive(Clone, Debug)]
+pub(super) struct GridPoint {
+    pub(super) t: f64,
+    pub(super) answer: Vec<f64>,
+    pub(super) check: Vec<f64>,
+    pub(super) est: f64,
+}
+
+/// A step of a window failed.
+#[derive(Debug)]
+pub(super) struct StepFailure {
+    pub(super) t: f64,
+    pub(super) h: f64,
+    pub(super) error: Error,
+}
+
+/// The solve's fixed facts: the options, the span, y₀, which times count as the same, the
+/// times the steps must land on.
+pub(super) struct Ctx<'o> {
+    pub(super) options: &'o Options,
+    pub(super) t0: f64,
+    pub(super) t_end: f64,
+    pub(super) y0: &'o [f64],
+    pub(super) same_time: f64,
+    /// The times steps land on (`Options::tstops` in the span, then t_end), ascending.
+    pub(super) stops: Vec<f64>,
+    /// The rounding unit of the noise model.
+    unit: f64,
+    /// Whether the run is checked (a tolerance) or not (a fixed method).
+    pub(super) verified: bool,
+}
+
+impl<'o> Ctx<'o> {
+    pub(super) fn new(
+        options: &'o Options,
+        (t0, t_end): (f64, f64),
+        y0: &'o [f64],
+        verified: bool,
+    ) -> Self {
+        let same_time = 16.0 * f64::EPSILON * t0.abs().max(t_end.abs()).max(t_end - t0);
+        let mut stops: Vec<f64> = options
+            .tstops
+            .iter()
+            .copied()
+            .filter(|&s| s > t0 + same_time && s < t_end - same_time)
+            .collect();
+        stops.sort_by(f64::total_cmp);
+        stops.dedup();
+        stops.push(t_end);
+        Ctx {
+            options,
+            t0,
+            t_end,
+            y0,
+            same_time,
+            stops,
+            unit: f64::EPSILON.max(options.settings.tolerance / 5.0),
+            verified,
+        }
+    }
+
+    /// The estimate at a grid point after `n` steps, in units of the tolerance: the scaled
+    /// difference of the two runs plus the modelled round-off (0 for a fixed method).
+    pub(super) fn estimate(&self, answer: &[f64], check: &[f64], n: usize) -> f64 {
+        if !self.verified {
+            return 0.0;
+        }
+        let tolerance = (self.options.rtol, self.options.atol);
+        estimate(tolerance, self.unit, answer, check, n)
+    }
+
+    /// The modelled round-off of the answer `y` after `n` steps, in units of the tolerance.
+    pub(super) fn noise(&self, y: &[f64], n: usize) -> f64 {
+        estimate((self.options.rtol, self.options.atol), self.unit, y, y, n)
+    }
+
+    /// The rounding of one step from y₀ in units of the tolerance, over the components whose
+    /// tolerance is not 0: below this nothing can be verified.
+    pub(super) fn floor(&self) -> f64 {
+        let (rtol, atol) = (self.options.rtol, self.options.atol);
+        let big = self.y0.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+        let noise = NOISE * self.unit * big.max(f64::MIN_POSITIVE);
+        self.y0
+            .iter()
+            .map(|y| atol + rtol * y.abs())
+            .filter(|&w| w > 0.0)
+            .map(|w| noise / w)
+            .fold(0.0, f64::max)
+    }
+
+    /// The next time steps must land on after `t`.
+    pub(super) fn next_stop(&self, t: f64) -> f64 {
+        self.stops
+            .iter()
+            .copied()
+            .find(|&s| s > t + self.same_time)
+            .unwrap_or(self.t_end)
+    }
+
+    /// The state at t₀.
+    pub(super) fn start(&self) -> State {
+        State {
+            t: self.t0,
+            n: 0,
+            worst: 0.0,
+            answer: self.y0.to_vec(),
+            check: self.y0.to_vec(),
+        }
+    }
+}
+
+/// The estimate at a value of the answer after `n` steps, in units of the tolerance `(rtol,
+/// atol)`: the difference to the check's value plus the modelled round-off (rounding unit
+/// `unit`), max_i (|a_i − c_i| + noise) / (atol + rtol |a_i|), a zero counting 0 also where the
+/// weight is 0.
+pub(super) fn estimate(
+    (rtol, atol): (f64, f64),
+    unit: f64,
+    answer: &[f64],
+    check: &[f64],
+    n: usize,
+) -> f64 {
+    let big = answer.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+    let noise = NOISE * unit * big.max(f64::MIN_POSITIVE) * (n as f64).sqrt();
+    answer
+        .iter()
+        .zip(check)
+        .map(|(a, c)| {
+            let e = (a - c).abs() + noise;
+            if e == 0.0 {
+                0.0
+            } else {
+                e / (atol + rtol * a.abs())
+            }
+        })
+        .fold(0.0, |m, x| if x > m || x.is_nan() { x } else { m })
+}
+
+/// `steps` steps of size h (set on the runs by the caller) from `from`: the grid points with
+/// their estimates. Their times are a + (k + j)·h for the j-th step with `(a, k) = origin`
+/// (where the steps of this size began, and how many were taken since: times are computed, not
+/// summed), the last one `end` if given (a step that lands on a stop, its size within the
+/// rounding of h).
+pub(super) fn advance(
+    ctx: &Ctx<'_>,
+    runs: &mut dyn Runs,
+    from: &State,
+    (a, k): (f64, usize),
+    steps: usize,
+    end: Option<f64>,
+    cost: &mut Cost,
+) -> std::result::Result<Vec<GridPoint>, StepFailure> {
+    let h = runs.step_size();
+    let (mut ya, mut yc) = (from.answer.clone(), from.check.clone());
+    let mut points = Vec::with_capacity(steps);
+    let time = |j: usize| ((k + j) as f64).mul_add(h, a);
+    for j in 1..=steps {
+        let t = match end {
+            Some(e) if j == steps => e,
+            _ => time(j),
+        };
+        let t_before = if j == 1 { from.t } else { time(j - 1) };
+        runs.step(&mut ya, &mut yc, cost)
+            .map_err(|error| StepFailure {
+                t: t_before,
+                h,
+                error,
+            })?;
+        let est = ctx.estimate(&ya, &yc, from.n + j);
+        if est.is_nan() {
+            return Err(StepFailure {
+                t: t_before,
+                h,
+                error: Error::NonFinite("the estimate of the error"),
+            });
+        }
+        points.push(GridPoint {
+            t,
+            answer: ya.clone(),
+            check: yc.clone(),
+            est,
+        });
+    }
+    Ok(points)
+}
+
+/// What a kept window adds to the solution.
+pub(super) struct Yield {
+    /// The largest estimate of its values between grid points (outputs, events).
+    pub(super) between: f64,
+    /// Where a terminal event ended the run, if one did.
+    pub(super) terminal: Option<(usize, f64)>,
+}
+
+/// The values of the runs at `t` between the grid point `base` (before t) and the next:
+/// partial steps of both (the grid value itself where t is the grid point's time, moved along
+/// the field where t is within the rounding of it).
+pub(super) fn between(
+    ctx: &Ctx<'_>,
+    runs: &mut dyn Runs,
+    base: &GridPoint,
+    n: usize,
+    t: f64,
+    cost: &mut Cost,
+) -> Result<Point> {
+    let dt = t - base.t;
+    let d = base.answer.len();
+    if dt <= 0.0 {
+        return Ok(Point {
+            t,
+            y: base.answer.clone(),
+            est: base.est,
+        });
+    }
+    if dt < 4.0 * f64::MIN_POSITIVE
+        || dt <= crate::integrate::StepPlan::TIME_ULPS * f64::EPSILON * t.abs()
+    {
+        let mut y = base.answer.clone();
+        runs.drift(&mut y, dt)?;
+        return Ok(Point {
+            t,
+            y,
+            est: base.est,
+        });
+    }
+    let (mut ya, mut yc) = (vec![0.0; d], vec![0.0; d]);
+    runs.partial((&base.answer, &base.check), dt, (&mut ya, &mut yc), cost)?;
+    let est = ctx.estimate(&ya, &yc, n + 1);
+    if est.is_nan() {
+        return Err(Error::NonFinite(
+            "the estimate of the error between grid points",
+        ));
+    }
+    Ok(Point { t, y: ya, est })
+}
+
+/// Gives the solution what the kept window `points` (after the grid point `start`, the answer's
+/// step `n0` there) holds: every grid point as an output (without `t_eval`) or the `t_eval`
+/// times in (start, last], the zeros of the events, the grid, the steps for the observer.
+/// `t_eval_next` is the index of the next `t_eval` time not yet produced; `ev_prev` the event
+/// functions at the start.
+///
+/// # Errors
+/// What the steps between grid points report, an event function's NaN, storage.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn keep(
+    ctx: &Ctx<'_>,
+    runs: &mut dyn Runs,
+    record: &mut Record,
+    start: &GridPoint,
+    n0: usize,
+    points: &[GridPoint],
+    t_eval_next: &mut usize,
+    ev_prev: &mut [f64],
+    with_observer: bool,
+) -> Result<Yield> {
+    let options = ctx.options;
+    let mut cost = Cost::default();
+    let mut between_worst = 0.0_f64;
+    let mut terminal = None;
+    let h = runs.step_size();
+    let mut prev = start;
+    for (j, p) in points.iter().enumerate() {
+        let n = n0 + j;
+        // Events: a sign change of an event function over this step, located by partial steps
+        // of the answer from the grid point before it.
+        let mut first_hit: Option<(usize, Point)> = None;
+        for (k, event) in options.events.iter().enumerate() {
+            let after = event.value(k, p.t, &p.answer)?;
+            let before = ev_prev[k];
+            ev_prev[k] = after;
+            if !event.counts(before, after) {
+                continue;
+            }
+            let t_hit = event.locate((prev.t, before), (p.t, after), |t| {
+                let v = between(ctx, runs, prev, n, t, &mut cost)?;
+                event.value(k, t, &v.y)
+            })?;
+            let hit = between(ctx, runs, prev, n, t_hit, &mut cost)?;
+            between_worst = between_worst.max(hit.est);
+            if event.terminal && first_hit.as_ref().is_none_or(|(_, q)| hit.t < q.t) {
+                first_hit = Some((k, hit.clone()));
+            }
+            if !event.terminal {
+                record.hits.push((k, hit));
+            }
+        }
+        let end = first_hit.as_ref().map_or(p.t, |(_, q)| q.t);
+        // Outputs up to the end of this step (or the terminal event).
+        match &options.t_eval {
+            None => {
+                if first_hit.is_none() {
+                    record.output(Point {
+                        t: p.t,
+                        y: p.answer.clone(),
+                        est: p.est,
+                    })?;
+                }
+            }
+            Some(ts) => {
+                while let Some(&t) = ts.get(*t_eval_next) {
+                    if t > end + ctx.same_time || (first_hit.is_some() && t > end) {
+                        break;
+                    }
+                    let v = if (t - p.t).abs() <= ctx.same_time {
+                        Point {
+                            t,
+                            y: p.answer.clone(),
+                            est: p.est,
+                        }
+                    } else {
+                        between(ctx, runs, prev, n, t, &mut cost)?
+                    };
+                    between_worst = between_worst.max(v.est);
+                    record.output(v)?;
+                    *t_eval_next += 1;
+                }
+            }
+        }
+        if let Some((k, hit)) = first_hit {
+            let t = hit.t;
+            if options.t_eval.is_none() {
+                record.output(hit.clone())?;
+            }
+            record.hits.push((k, hit));
+            terminal = Some((k, t));
+            break;
+        }
+        if options.dense {
+            record.grid(p.t, &p.answer, &p.check)?;
+        }
+        if with_observer {
+            record.step_for_observer(p.t, n + 1, h, &p.answer);
+        }
+        prev = p;
+    }
+    record.cost.add(&cost);
+    if let Some((event, t)) = terminal {
+        record.stop_at(t, Status::Terminated { event, t });
+    }
+    Ok(Yield {
+        between: between_worst,
+        terminal,
+    })
+}
+
+/// The outputs at t₀: y₀ (every step's output starts there; `t_eval` times at t₀).
+pub(super) fn start_outputs(
+    ctx: &Ctx<'_>,
+    record: &mut Record,
+    t_eval_next: &mut usize,
+) -> Result<()> {
+    let est = ctx.estimate(ctx.y0, ctx.y0, 0);
+    match &ctx.options.t_eval {
+        None => record.output(Point {
+            t: ctx.t0,
+            y: ctx.y0.to_vec(),
+            est,
+        }),
+        Some(ts) => {
+            while let Some(&t) = ts.get(*t_eval_next) {
+                if t > ctx.t0 + ctx.same_time {
+                    break;
+                }
+                record.output(Point {
+                    t,
+                    y: ctx.y0.to_vec(),
+                    est,
+                })?;
+                *t_eval_next += 1;
+            }
+            Ok(())
+        }
+    }
+}
