@@ -269,3 +269,35 @@ pub(super) fn drift<S: System>(system: &S, y: &mut [f64], dt: f64) -> Result<()>
     }
     Ok(())
 }
+
+/// The round-off model of the estimate: every step rounds each component by this many units of
+/// max(ε, the stage tolerance / 5) of the largest component (the propagator and the stage sums
+/// mix the components), and the roundings add up like a random walk.
+pub(super) const NOISE: f64 = 2.0;
+
+/// The estimate at a value of the answer after `n` steps, in units of the tolerance `(rtol,
+/// atol)`: the difference to the check's value plus the modelled round-off (rounding unit
+/// `unit`), max_i (|a_i − c_i| + noise) / (atol + rtol |a_i|), a zero counting 0 also where the
+/// weight is 0.
+pub(super) fn estimate(
+    (rtol, atol): (f64, f64),
+    unit: f64,
+    answer: &[f64],
+    check: &[f64],
+    n: usize,
+) -> f64 {
+    let big = answer.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+    let noise = NOISE * unit * big.max(f64::MIN_POSITIVE) * (n as f64).sqrt();
+    answer
+        .iter()
+        .zip(check)
+        .map(|(a, c)| {
+            let e = (a - c).abs() + noise;
+            if e == 0.0 {
+                0.0
+            } else {
+                e / (atol + rtol * a.abs())
+            }
+        })
+        .fold(0.0, |m, x| if x > m || x.is_nan() { x } else { m })
+}

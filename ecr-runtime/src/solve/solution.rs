@@ -360,7 +360,7 @@ impl<S: System> Solution<S> {
         if check.is_some() {
             let (rtol, atol) = dense.tolerance;
             let unit = f64::EPSILON.max(dense.settings.tolerance / 5.0);
-            let e = super::window::estimate((rtol, atol), unit, out, &check_out, k + 1);
+            let e = super::runs::estimate((rtol, atol), unit, out, &check_out, k + 1);
             if e.is_nan() || e > 1.0 {
                 return Err(Error::Unverified(format!(
                     "the estimated error at t = {t:?} is {e:.3e} times the tolerance"

@@ -5,7 +5,7 @@
 
 use super::options::Options;
 use super::record::{Point, Record};
-use super::runs::{Cost, Runs};
+use super::runs::{Cost, NOISE, Runs, estimate};
 use super::solution::Status;
 use crate::error::{Error, Result};
 
@@ -29,11 +29,6 @@ pub(super) fn check_order(r: usize) -> f64 {
 pub(super) fn resolution(t: f64) -> f64 {
     crate::integrate::StepPlan::TIME_ULPS * f64::EPSILON * t.abs()
 }
-
-/// The round-off model of the estimate: every step rounds each component by this many units of
-/// max(ε, the stage tolerance / 5) of the largest component (the propagator and the stage sums
-/// mix the components), and the roundings add up like a random walk.
-const NOISE: f64 = 2.0;
 
 /// Where the runs stand: the time, the answer's steps since t₀, the largest estimate so far,
 /// the states.
@@ -156,33 +151,6 @@ impl<'o> Ctx<'o> {
             check: self.y0.to_vec(),
         }
     }
-}
-
-/// The estimate at a value of the answer after `n` steps, in units of the tolerance `(rtol,
-/// atol)`: the difference to the check's value plus the modelled round-off (rounding unit
-/// `unit`), max_i (|a_i − c_i| + noise) / (atol + rtol |a_i|), a zero counting 0 also where the
-/// weight is 0.
-pub(super) fn estimate(
-    (rtol, atol): (f64, f64),
-    unit: f64,
-    answer: &[f64],
-    check: &[f64],
-    n: usize,
-) -> f64 {
-    let big = answer.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
-    let noise = NOISE * unit * big.max(f64::MIN_POSITIVE) * (n as f64).sqrt();
-    answer
-        .iter()
-        .zip(check)
-        .map(|(a, c)| {
-            let e = (a - c).abs() + noise;
-            if e == 0.0 {
-                0.0
-            } else {
-                e / (atol + rtol * a.abs())
-            }
-        })
-        .fold(0.0, |m, x| if x > m || x.is_nan() { x } else { m })
 }
 
 /// `steps` steps of size h (set on the runs by the caller) from `from`: the grid points with
