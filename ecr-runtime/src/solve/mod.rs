@@ -95,7 +95,7 @@ pub(crate) type SolveCache<S> = BankCache<<<S as System>::Op as LinearOperator>:
 
 /// Banks a solve keeps at once (besides the ones in use): the answer's and the check's for the
 /// step sizes of the ladder the run moves on.
-const SOLVE_CACHE_BANKS: usize = 16;
+pub(crate) const SOLVE_CACHE_BANKS: usize = 16;
 
 /// An initial value problem y' = Ay + g(y), y(t₀) = y₀, on [t₀, t_end]. The system is held
 /// behind a reference count, so that the solutions share it rather than borrow the problem.
@@ -204,7 +204,31 @@ impl<S: System> Problem<S> {
     fn run(
         &self,
         options: &Options,
+        observer: record::Observer<'_>,
+    ) -> std::result::Result<Solution<S>, SolveError> {
+        let cache = Arc::new(SolveCache::<S>::new(SOLVE_CACHE_BANKS));
+        self.run_sharing(options, observer, &cache)
+    }
+
+    /// [`solve`](Self::solve) taking the φ-banks from `cache` and putting the ones it builds
+    /// there: solves of problems whose linear operators are equal may share one cache (the
+    /// members of an ensemble that share their system). The cache must serve only such
+    /// problems: its keys do not identify the operator.
+    #[allow(dead_code)] // for the ensembles' shared banks (issue 52), not wired yet
+    pub(crate) fn solve_sharing(
+        &self,
+        options: &Options,
+        cache: &Arc<SolveCache<S>>,
+    ) -> std::result::Result<Solution<S>, SolveError> {
+        self.run_sharing(options, None, cache)
+    }
+
+    /// The solve with a bank cache.
+    fn run_sharing(
+        &self,
+        options: &Options,
         mut observer: record::Observer<'_>,
+        cache: &Arc<SolveCache<S>>,
     ) -> std::result::Result<Solution<S>, SolveError> {
         options.validate()?;
         if let Some(ts) = &options.t_eval {
@@ -217,7 +241,6 @@ impl<S: System> Problem<S> {
             }
         }
         let system = &*self.system;
-        let cache = Arc::new(SolveCache::<S>::new(SOLVE_CACHE_BANKS));
         let verified = !matches!(options.method, Method::Fixed { .. });
         let ctx = window::Ctx::new(options, (self.t0, self.t_end), &self.y0, verified);
         let mut make = |r: usize, check: bool, h: f64| -> Result<Box<dyn runs::Runs + '_>> {
@@ -229,7 +252,7 @@ impl<S: System> Problem<S> {
                 ),
                 solve_stepper_bytes(system, r, check, &options.settings),
             )?;
-            let runs = runs::PairRuns::new(system, r, check, h, options.settings, &cache)?;
+            let runs = runs::PairRuns::new(system, r, check, h, options.settings, cache)?;
             Ok(Box::new(runs))
         };
         match options.method {
