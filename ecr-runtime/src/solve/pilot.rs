@@ -9,6 +9,16 @@ use crate::error::Result;
 /// Steps of a pilot window.
 pub(super) const PILOT_STEPS: usize = 8;
 
+/// A pilot round raises the step by at most this factor.
+const UP_ROUND: f64 = 2.0;
+
+/// A step predicted between the largest step measured within the target and the smallest
+/// beyond it stays this factor inside them.
+const BRACKET_IN: f64 = 1.1;
+
+/// The bracket is narrow enough at this ratio.
+const BRACKET_DONE: f64 = 1.3;
+
 /// Pilot rounds per order (each rescales the step from the growth it saw).
 pub(super) const PILOT_ROUNDS: usize = 4;
 
@@ -44,6 +54,7 @@ pub(super) fn pilot(
         let mut h = h0;
         let mut runs = make(r, true, h)?;
         let (mut per_step, mut seen) = (0.0, 0.0_f64);
+        let (mut good, mut bad) = (0.0_f64, f64::INFINITY);
         for round in 0..PILOT_ROUNDS {
             runs.set_step_size(h)?;
             let window = (span / 8.0).min(PILOT_STEPS as f64 * h);
@@ -79,28 +90,56 @@ pub(super) fn pilot(
             let duration = steps as f64 * h;
             let growth = points.iter().map(|q| q.est).fold(0.0, f64::max);
             seen = seen.max(growth);
-            let rate = growth / duration;
-            let wanted = TARGET / span;
-            // At most PILOT_STEPS steps of the pilot fit in 1/8 of the span: a step beyond that is
-            // not measured by enough steps.
-            let next = if rate > 0.0 {
-                (h * (wanted / rate).powf(1.0 / p.min(P_BOLD))).clamp(h / 16.0, h * 4.0)
+            // The growth of the pilot's second half, per unit time, projected over the span
+            // from where the pilot ends: the first steps make the difference of the two runs
+            // from nothing, which the later ones do not repeat.
+            let half = points.len() / 2;
+            let early = points[..half].iter().map(|q| q.est).fold(0.0, f64::max);
+            let late = if half > 0 {
+                (growth - early) / (duration / 2.0)
             } else {
-                h * 4.0
+                growth / duration
+            };
+            let projected = growth + late.max(0.0) * (span - duration).max(0.0);
+            let (rate, wanted) = (projected / span, TARGET / span);
+            // A bracket: the largest step measured within the target and the smallest beyond it.
+            // Far from the asymptotic regime the estimate does not grow like h^p, and a large
+            // step can cross a cliff where the check no longer follows g (Duffing ω = 20 at
+            // EC7P: 1e−5 per unit time at hω = 2.4, 5 at hω = 4.7); so the step returned is one
+            // that was measured, and the next one is predicted inside the bracket.
+            if rate <= wanted {
+                good = good.max(h);
+            } else {
+                bad = bad.min(h);
             }
-            .min(max_step)
-            .min(span / 8.0 / PILOT_STEPS as f64);
+            let predicted = if rate > 0.0 {
+                h * (wanted / rate).powf(1.0 / p.min(P_BOLD))
+            } else {
+                h * UP_ROUND
+            };
+            let top = max_step.min(span / 8.0 / PILOT_STEPS as f64);
+            let next = if good == 0.0 {
+                predicted.clamp(h / 16.0, h / 2.0)
+            } else if bad.is_infinite() {
+                predicted.clamp(h, h * UP_ROUND).min(top)
+            } else if bad / good > BRACKET_IN * BRACKET_IN {
+                // Inside the bracket: the prediction, kept away from its ends.
+                predicted.clamp(good * BRACKET_IN, bad / BRACKET_IN)
+            } else {
+                (good * bad).sqrt()
+            };
             ctx.options.say(|| {
                 format!(
                     "pilot EC{r}P round {round}: h = {h:.4e}, {steps} steps, estimate {growth:.3e} → h = {next:.4e}"
                 )
             });
-            let settled = next <= 3.0 * h && next >= h / 3.0;
-            h = next;
-            if settled {
+            let closed = good > 0.0 && (bad / good <= BRACKET_DONE || good >= top);
+            if closed || next == h {
                 break;
             }
+            h = next;
         }
+        let h = if good > 0.0 { good } else { h };
         // An estimate far below the target over the pilot says nothing of how the orders
         // compare (nothing happens there yet, or only rounding shows).
         let informative = seen > 1e-3 * TARGET;
