@@ -18,6 +18,8 @@ mod baselines_exponential;
 mod baselines_krylov;
 #[cfg(feature = "baselines")]
 mod baselines_peers;
+#[cfg(feature = "problems")]
+mod between;
 #[cfg(feature = "cli")]
 mod bit_identity;
 #[cfg(feature = "problems")]

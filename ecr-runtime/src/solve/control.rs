@@ -9,7 +9,7 @@ use super::record::{Observer, Point, Record, cost_since};
 use super::runs::{Cost, Make, Runs};
 use super::solution::{Stats, Status};
 use super::window::{
-    Ctx, GridPoint, LIMIT, P_BOLD, State, StepFailure, TARGET, advance, check_order, keep,
+    Ctx, GridPoint, LIMIT, P_BOLD, State, StepFailure, TARGET, Trail, advance, check_order, keep,
     resolution, start_outputs,
 };
 use crate::error::{Error, Result};
@@ -297,6 +297,12 @@ fn run(
     if options.dense {
         record.grid(ctx.t0, ctx.y0, ctx.y0)?;
     }
+    // The last grid points, for values between them by interpolation.
+    let mut trail = (options.t_eval.is_some() || !options.events.is_empty()).then(|| {
+        let mut trail = Trail::default();
+        trail.push(ctx.t0, ctx.y0, ctx.y0);
+        trail
+    });
     let (mut stuck, mut retries) = (0usize, 0usize);
     // The last failed step: where, with which step, why.
     let mut failure: Option<(f64, f64, String)> = None;
@@ -459,6 +465,12 @@ fn run(
             check: state.check.clone(),
             est: state.worst,
         };
+        let trail_mark = trail.as_ref().map_or(0, Trail::len);
+        if let Some(trail) = &mut trail {
+            for q in &points {
+                trail.push(q.t, &q.answer, &q.check);
+            }
+        }
         let kept = keep(
             ctx,
             runs,
@@ -469,6 +481,7 @@ fn run(
             &mut t_eval_next,
             &mut ev_prev,
             with_observer,
+            trail.as_ref(),
         );
         let failed_between = match &kept {
             Ok(y) => (y.between > LIMIT && retries < MAX_WINDOW_TRIES && !permissive)
@@ -481,6 +494,9 @@ fn run(
             stats.discard(&cost);
             stats.discard(&spent);
             record.rollback(mark);
+            if let Some(trail) = &mut trail {
+                trail.truncate(trail_mark);
+            }
             (ev_prev, t_eval_next) = (ev_save, t_eval_save);
             retries += 1;
             stuck += usize::from(kept.is_err());
@@ -495,6 +511,9 @@ fn run(
             continue;
         }
         let yielded = kept?;
+        if let Some(trail) = &mut trail {
+            trail.trim();
+        }
         record.cost.add(&cost);
         record.step_size_from(state.t, hw);
         segment = (origin.0, hw, origin.1 + points.len());

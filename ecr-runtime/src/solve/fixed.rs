@@ -87,6 +87,7 @@ pub(super) fn fixed(
             &mut t_eval_next,
             &mut ev_prev,
             observer.is_some(),
+            None,
         )?;
         record.step_size_from(state.t, size);
         let last = points.last().expect("a chunk has a step");

@@ -71,6 +71,7 @@
 mod control;
 mod events;
 mod fixed;
+mod interp;
 mod options;
 mod pilot;
 mod record;

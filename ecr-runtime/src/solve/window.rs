@@ -69,7 +69,7 @@ pub(super) struct Ctx<'o> {
     /// The times steps land on (`Options::tstops` in the span, then t_end), ascending.
     pub(super) stops: Vec<f64>,
     /// The rounding unit of the noise model.
-    unit: f64,
+    pub(super) unit: f64,
     /// Whether the run is checked (a tolerance) or not (a fixed method).
     pub(super) verified: bool,
 }
@@ -218,6 +218,7 @@ pub(super) fn between(
     base: &GridPoint,
     n: usize,
     t: f64,
+    trail: Option<&Trail>,
     cost: &mut Cost,
 ) -> Result<Point> {
     let dt = t - base.t;
@@ -240,7 +241,17 @@ pub(super) fn between(
             est: base.est,
         });
     }
-    let (mut ya, mut yc) = (vec![0.0; d], vec![0.0; d]);
+    let mut ya = vec![0.0; d];
+    // The interpolant of the grid where its estimate holds (no step, no φ-bank).
+    if let Some(trail) = trail {
+        let tolerance = (ctx.options.rtol, ctx.options.atol);
+        if let Some(est) = trail.grid(d).value(t, tolerance, ctx.unit, n + 1, &mut ya) {
+            if est <= INTERP_MAX {
+                return Ok(Point { t, y: ya, est });
+            }
+        }
+    }
+    let mut yc = vec![0.0; d];
     runs.partial((&base.answer, &base.check), dt, (&mut ya, &mut yc), cost)?;
     let est = ctx.estimate(&ya, &yc, n + 1);
     if est.is_nan() {
@@ -249,6 +260,64 @@ pub(super) fn between(
         ));
     }
     Ok(Point { t, y: ya, est })
+}
+
+/// A value between grid points takes the interpolant where its estimate is at most this many
+/// tolerances (else one step of each method, whose own estimate is usually far smaller).
+const INTERP_MAX: f64 = 0.5;
+
+/// The last grid points of the run (times, the answer's and the check's states), for the
+/// interpolant of values between them.
+#[derive(Default)]
+pub(super) struct Trail {
+    t: Vec<f64>,
+    answer: Vec<f64>,
+    check: Vec<f64>,
+}
+
+impl Trail {
+    /// Points kept besides a window's: an interpolant's stencil and its check before it.
+    const KEEP: usize = super::interp::POINTS + 1;
+
+    pub(super) fn push(&mut self, t: f64, answer: &[f64], check: &[f64]) {
+        self.t.push(t);
+        self.answer.extend_from_slice(answer);
+        self.check.extend_from_slice(check);
+    }
+
+    /// The number of points held.
+    pub(super) fn len(&self) -> usize {
+        self.t.len()
+    }
+
+    /// Back to `len` points (the ones pushed after are dropped).
+    pub(super) fn truncate(&mut self, len: usize) {
+        let d = self.answer.len().checked_div(self.t.len()).unwrap_or(0);
+        self.t.truncate(len);
+        self.answer.truncate(len * d);
+        self.check.truncate(len * d);
+    }
+
+    /// Keeps only the last [`Trail::KEEP`] points.
+    pub(super) fn trim(&mut self) {
+        let n = self.t.len();
+        if n > Self::KEEP {
+            let d = self.answer.len() / n;
+            let drop = n - Self::KEEP;
+            self.t.drain(..drop);
+            self.answer.drain(..drop * d);
+            self.check.drain(..drop * d);
+        }
+    }
+
+    pub(super) fn grid(&self, d: usize) -> super::interp::Grid<'_> {
+        super::interp::Grid {
+            t: &self.t,
+            answer: &self.answer,
+            check: &self.check,
+            d,
+        }
+    }
 }
 
 /// Gives the solution what the kept window `points` (after the grid point `start`, the answer's
@@ -270,6 +339,7 @@ pub(super) fn keep(
     t_eval_next: &mut usize,
     ev_prev: &mut [f64],
     with_observer: bool,
+    trail: Option<&Trail>,
 ) -> Result<Yield> {
     let options = ctx.options;
     let mut cost = Cost::default();
@@ -290,10 +360,10 @@ pub(super) fn keep(
                 continue;
             }
             let t_hit = event.locate((prev.t, before), (p.t, after), |t| {
-                let v = between(ctx, runs, prev, n, t, &mut cost)?;
+                let v = between(ctx, runs, prev, n, t, trail, &mut cost)?;
                 event.value(k, t, &v.y)
             })?;
-            let hit = between(ctx, runs, prev, n, t_hit, &mut cost)?;
+            let hit = between(ctx, runs, prev, n, t_hit, trail, &mut cost)?;
             between_worst = between_worst.max(hit.est);
             if event.terminal && first_hit.as_ref().is_none_or(|(_, q)| hit.t < q.t) {
                 first_hit = Some((k, hit.clone()));
@@ -326,7 +396,7 @@ pub(super) fn keep(
                             est: p.est,
                         }
                     } else {
-                        between(ctx, runs, prev, n, t, &mut cost)?
+                        between(ctx, runs, prev, n, t, trail, &mut cost)?
                     };
                     between_worst = between_worst.max(v.est);
                     record.output(v)?;
