@@ -192,3 +192,37 @@ fn event_times_are_found_to_the_tolerance() {
         }
     }
 }
+
+/// Events cost little: on Lotka–Volterra u' = u(2/3 − 4/3 v), v' = v(u − 1) over (0, 50)
+/// (no linear part), 12 crossings of u = 1 are located on values between grid points, and the
+/// solve with the event spends at most 5 % more evaluations of g than the one without. Each
+/// hit is on u = 1 within the tolerance.
+#[test]
+#[ignore = "target not met: +27 % / +131 % / +85 % of the g-evaluations at 1e-6 / 1e-8 / 1e-10 (the steps, h = 0.78 at 1e-8, are too long for the grid's Hermite interpolant to hold at the hits, and locating a hit to a few ulps steps both runs 6 to 25 times); cargo test -p ecr --test it events_cost_little -- --ignored --nocapture"]
+fn events_cost_little() {
+    let system = Semilinear::new(
+        ecr::runtime::operator::Zero::new(2),
+        |y: &[f64], g: &mut [f64]| {
+            g[0] = y[0] * (2.0 / 3.0 - 4.0 / 3.0 * y[1]);
+            g[1] = y[1] * (y[0] - 1.0);
+        },
+    );
+    let problem = Problem::new(system, [0.9, 0.9], (0.0, 50.0)).unwrap();
+    for tol in [1e-6, 1e-8, 1e-10] {
+        let plain = problem.solve(&Options::tolerance(tol)).unwrap();
+        let event = Event::new(|_, y: &[f64]| y[0] - 1.0).direction(Direction::Both);
+        let sol = problem
+            .solve(&Options::tolerance(tol).event(event))
+            .unwrap();
+        let (a, b) = (plain.stats.total_g_evals(), sol.stats.total_g_evals());
+        eprintln!(
+            "tol {tol:e}: {} hits, g {a} without the event, {b} with ({:+.2} %), {} steps between grid points",
+            sol.events.len(),
+            100.0 * (b as f64 / a as f64 - 1.0),
+            sol.stats.dense_evals
+        );
+        for hit in &sol.events {
+            eprintln!("  t {:.6} u-1 {:.2e}", hit.t, hit.y[0] - 1.0);
+        }
+    }
+}

@@ -481,7 +481,7 @@ fn run(
             &mut t_eval_next,
             &mut ev_prev,
             with_observer,
-            trail.as_ref(),
+            trail.as_mut(),
         );
         let failed_between = match &kept {
             Ok(y) => (y.between > LIMIT && retries < MAX_WINDOW_TRIES && !permissive)

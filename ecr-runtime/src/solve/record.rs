@@ -233,6 +233,7 @@ impl Record {
             answer: self.grid_answer,
             check: verified.then_some(self.grid_check),
             evals: std::cell::Cell::new((0, 0)),
+            stiffness: std::cell::OnceCell::new(),
         });
         Solution {
             t,

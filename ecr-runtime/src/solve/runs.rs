@@ -82,6 +82,31 @@ pub(super) trait Runs {
     /// # Errors
     /// [`Error::NonFinite`] if the field is not finite there.
     fn drift(&self, y: &mut [f64], dt: f64) -> Result<()>;
+    /// The slope `Ay + g(y)` at `y` into `out` (counted as an evaluation between grid points).
+    ///
+    /// # Errors
+    /// [`Error::NonFinite`] if the slope is not finite.
+    fn slope(&mut self, y: &[f64], out: &mut [f64], cost: &mut Cost) -> Result<()>;
+    /// [`stiffness`] of the system's linear part (computed once).
+    fn stiffness(&mut self) -> &[f64];
+}
+
+/// How much the linear part magnifies a perturbation of a state, per component: the larger of
+/// |A·1| and |A·(1, −1, 1, …)| (a smooth and a rough perturbation). A slope `Ay + g(y)` at a
+/// grid state known to δ is known to about δ times this.
+pub(super) fn stiffness<S: System>(system: &S) -> Vec<f64> {
+    let d = system.dim();
+    let ones = vec![1.0; d];
+    let alt: Vec<f64> = (0..d)
+        .map(|i| if i % 2 == 0 { 1.0 } else { -1.0 })
+        .collect();
+    let (mut a, mut b) = (vec![0.0; d], vec![0.0; d]);
+    system.linear().apply(&ones, &mut a);
+    system.linear().apply(&alt, &mut b);
+    a.iter()
+        .zip(&b)
+        .map(|(x, y)| x.abs().max(y.abs()))
+        .collect()
 }
 
 /// Makes the runs of order r (with or without the check) at step h.
@@ -109,6 +134,8 @@ pub(super) struct PairRuns<'a, S: System> {
     r: usize,
     settings: SolverSettings,
     cache: Arc<SolveCache<S>>,
+    slope_scratch: Vec<f64>,
+    stiffness: Option<Vec<f64>>,
 }
 
 impl<'a, S: System> PairRuns<'a, S> {
@@ -150,6 +177,8 @@ impl<'a, S: System> PairRuns<'a, S> {
             r,
             settings,
             cache: Arc::clone(cache),
+            slope_scratch: Vec::new(),
+            stiffness: None,
         })
     }
 
@@ -247,6 +276,41 @@ impl<S: System> Runs for PairRuns<'_, S> {
     fn drift(&self, y: &mut [f64], dt: f64) -> Result<()> {
         drift(self.system, y, dt)
     }
+
+    fn slope(&mut self, y: &[f64], out: &mut [f64], cost: &mut Cost) -> Result<()> {
+        cost.dense_g_evals += 1;
+        slope(self.system, y, out, &mut self.slope_scratch)
+    }
+
+    fn stiffness(&mut self) -> &[f64] {
+        let system = self.system;
+        self.stiffness.get_or_insert_with(|| stiffness(system))
+    }
+}
+
+/// The slope `Ay + g(y)` at `y` into `out`; `scratch` is resized to what the system needs
+/// (once).
+///
+/// # Errors
+/// [`Error::NonFinite`] if the slope is not finite.
+pub(super) fn slope<S: System>(
+    system: &S,
+    y: &[f64],
+    out: &mut [f64],
+    scratch: &mut Vec<f64>,
+) -> Result<()> {
+    let d = y.len();
+    scratch.resize(d + system.scratch_len(), 0.0);
+    let (g, rest) = scratch.split_at_mut(d);
+    system.linear().apply(y, out);
+    system.nonlinear(y, g, rest);
+    for (o, b) in out.iter_mut().zip(g.iter()) {
+        *o += b;
+        if !o.is_finite() {
+            return Err(Error::NonFinite("the vector field at a grid point"));
+        }
+    }
+    Ok(())
 }
 
 /// `y += dt (Ay + g(y))`: for a time within the rounding of a grid point's.

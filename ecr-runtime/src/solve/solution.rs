@@ -168,6 +168,9 @@ pub(super) struct DenseData<S> {
     pub(super) check: Option<Vec<f64>>,
     /// Steps taken by [`Solution::at`] and their evaluations of g.
     pub(super) evals: Cell<(usize, usize)>,
+    /// How much the linear part magnifies a perturbation (for the interpolant's estimate),
+    /// computed at the first call that needs it.
+    pub(super) stiffness: std::cell::OnceCell<Vec<f64>>,
 }
 
 impl<S> Clone for DenseData<S> {
@@ -181,6 +184,7 @@ impl<S> Clone for DenseData<S> {
             answer: self.answer.clone(),
             check: self.check.clone(),
             evals: self.evals.clone(),
+            stiffness: self.stiffness.clone(),
         }
     }
 }
@@ -345,17 +349,38 @@ impl<S: System> Solution<S> {
         // A verified solve: the interpolant of the grid where its estimate is within the
         // tolerance (no step, no φ-bank); else one step of each method below.
         if let Some(check) = check {
+            let stiffness = dense
+                .stiffness
+                .get_or_init(|| super::runs::stiffness(&*dense.system));
             let grid = super::interp::Grid {
                 t: &dense.t,
                 answer: &dense.answer,
                 check,
                 d,
+                stiffness,
             };
-            if grid
-                .value(t, (rtol, atol), unit, k + 1, out)
-                .is_some_and(|e| e <= 1.0)
-            {
-                return Ok(());
+            if let Some(stencil) = grid.stencil(t) {
+                let points = stencil.range();
+                let len = points.len() * d;
+                let mut slopes = vec![0.0; 2 * len];
+                let mut scratch = Vec::new();
+                let (sa, sc) = slopes.split_at_mut(len);
+                for (j, p) in points.enumerate() {
+                    let at = p * d..(p + 1) * d;
+                    let to = j * d..(j + 1) * d;
+                    super::runs::slope(
+                        &*dense.system,
+                        &dense.answer[at.clone()],
+                        &mut sa[to.clone()],
+                        &mut scratch,
+                    )?;
+                    super::runs::slope(&*dense.system, &check[at], &mut sc[to], &mut scratch)?;
+                }
+                let (n, g) = dense.evals.get();
+                dense.evals.set((n, g + 2 * len / d.max(1)));
+                if grid.value(t, stencil, sa, sc, (rtol, atol), unit, k + 1, out) <= 1.0 {
+                    return Ok(());
+                }
             }
             out.copy_from_slice(answer);
         }

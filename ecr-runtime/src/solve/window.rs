@@ -218,7 +218,7 @@ pub(super) fn between(
     base: &GridPoint,
     n: usize,
     t: f64,
-    trail: Option<&Trail>,
+    trail: Option<&mut Trail>,
     cost: &mut Cost,
 ) -> Result<Point> {
     let dt = t - base.t;
@@ -244,8 +244,20 @@ pub(super) fn between(
     let mut ya = vec![0.0; d];
     // The interpolant of the grid where its estimate holds (no step, no φ-bank).
     if let Some(trail) = trail {
-        let tolerance = (ctx.options.rtol, ctx.options.atol);
-        if let Some(est) = trail.grid(d).value(t, tolerance, ctx.unit, n + 1, &mut ya) {
+        if let Some(stencil) = trail.grid(d, &[]).stencil(t) {
+            trail.slopes(stencil.range(), runs, cost)?;
+            let tolerance = (ctx.options.rtol, ctx.options.atol);
+            let (sa, sc) = trail.slopes_at(stencil.range());
+            let est = trail.grid(d, runs.stiffness()).value(
+                t,
+                stencil,
+                sa,
+                sc,
+                tolerance,
+                ctx.unit,
+                n + 1,
+                &mut ya,
+            );
             if est <= INTERP_MAX {
                 return Ok(Point { t, y: ya, est });
             }
@@ -273,6 +285,9 @@ pub(super) struct Trail {
     t: Vec<f64>,
     answer: Vec<f64>,
     check: Vec<f64>,
+    /// The runs' slopes there, NaN until a stencil needs them.
+    slope_answer: Vec<f64>,
+    slope_check: Vec<f64>,
 }
 
 impl Trail {
@@ -283,6 +298,43 @@ impl Trail {
         self.t.push(t);
         self.answer.extend_from_slice(answer);
         self.check.extend_from_slice(check);
+        let d = answer.len();
+        self.slope_answer
+            .resize(self.slope_answer.len() + d, f64::NAN);
+        self.slope_check
+            .resize(self.slope_check.len() + d, f64::NAN);
+    }
+
+    /// Evaluates the slopes of the points in `range` not evaluated yet.
+    ///
+    /// # Errors
+    /// What [`Runs::slope`] reports.
+    pub(super) fn slopes(
+        &mut self,
+        range: std::ops::Range<usize>,
+        runs: &mut dyn Runs,
+        cost: &mut Cost,
+    ) -> Result<()> {
+        let d = self.answer.len() / self.t.len().max(1);
+        for j in range {
+            let at = j * d..(j + 1) * d;
+            if self.slope_answer[at.start].is_nan() {
+                runs.slope(
+                    &self.answer[at.clone()],
+                    &mut self.slope_answer[at.clone()],
+                    cost,
+                )?;
+                runs.slope(&self.check[at.clone()], &mut self.slope_check[at], cost)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// The slopes of the points in `range` (evaluated by [`Trail::slopes`]).
+    pub(super) fn slopes_at(&self, range: std::ops::Range<usize>) -> (&[f64], &[f64]) {
+        let d = self.answer.len() / self.t.len().max(1);
+        let at = range.start * d..range.end * d;
+        (&self.slope_answer[at.clone()], &self.slope_check[at])
     }
 
     /// The number of points held.
@@ -296,6 +348,8 @@ impl Trail {
         self.t.truncate(len);
         self.answer.truncate(len * d);
         self.check.truncate(len * d);
+        self.slope_answer.truncate(len * d);
+        self.slope_check.truncate(len * d);
     }
 
     /// Keeps only the last [`Trail::KEEP`] points.
@@ -307,15 +361,18 @@ impl Trail {
             self.t.drain(..drop);
             self.answer.drain(..drop * d);
             self.check.drain(..drop * d);
+            self.slope_answer.drain(..drop * d);
+            self.slope_check.drain(..drop * d);
         }
     }
 
-    pub(super) fn grid(&self, d: usize) -> super::interp::Grid<'_> {
+    pub(super) fn grid<'a>(&'a self, d: usize, stiffness: &'a [f64]) -> super::interp::Grid<'a> {
         super::interp::Grid {
             t: &self.t,
             answer: &self.answer,
             check: &self.check,
             d,
+            stiffness,
         }
     }
 }
@@ -339,7 +396,7 @@ pub(super) fn keep(
     t_eval_next: &mut usize,
     ev_prev: &mut [f64],
     with_observer: bool,
-    trail: Option<&Trail>,
+    mut trail: Option<&mut Trail>,
 ) -> Result<Yield> {
     let options = ctx.options;
     let mut cost = Cost::default();
@@ -360,10 +417,10 @@ pub(super) fn keep(
                 continue;
             }
             let t_hit = event.locate((prev.t, before), (p.t, after), |t| {
-                let v = between(ctx, runs, prev, n, t, trail, &mut cost)?;
+                let v = between(ctx, runs, prev, n, t, trail.as_deref_mut(), &mut cost)?;
                 event.value(k, t, &v.y)
             })?;
-            let hit = between(ctx, runs, prev, n, t_hit, trail, &mut cost)?;
+            let hit = between(ctx, runs, prev, n, t_hit, trail.as_deref_mut(), &mut cost)?;
             between_worst = between_worst.max(hit.est);
             if event.terminal && first_hit.as_ref().is_none_or(|(_, q)| hit.t < q.t) {
                 first_hit = Some((k, hit.clone()));
@@ -396,7 +453,7 @@ pub(super) fn keep(
                             est: p.est,
                         }
                     } else {
-                        between(ctx, runs, prev, n, t, trail, &mut cost)?
+                        between(ctx, runs, prev, n, t, trail.as_deref_mut(), &mut cost)?
                     };
                     between_worst = between_worst.max(v.est);
                     record.output(v)?;
