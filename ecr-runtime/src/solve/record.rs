@@ -234,6 +234,7 @@ impl Record {
             check: verified.then_some(self.grid_check),
             evals: std::cell::Cell::new((0, 0)),
             stiffness: std::cell::OnceCell::new(),
+            slopes: std::cell::RefCell::default(),
         });
         Solution {
             t,

@@ -171,6 +171,17 @@ pub(super) struct DenseData<S> {
     /// How much the linear part magnifies a perturbation (for the interpolant's estimate),
     /// computed at the first call that needs it.
     pub(super) stiffness: std::cell::OnceCell<Vec<f64>>,
+    /// The slopes at the grid points, evaluated when a stencil first reads them.
+    pub(super) slopes: std::cell::RefCell<Slopes>,
+}
+
+/// The slopes `Ay + g(y)` of the answer and the check at the grid points of a dense solution
+/// (flat, NaN until evaluated), and the scratch of their evaluation.
+#[derive(Clone, Debug, Default)]
+pub(super) struct Slopes {
+    pub(super) answer: Vec<f64>,
+    pub(super) check: Vec<f64>,
+    pub(super) scratch: Vec<f64>,
 }
 
 impl<S> Clone for DenseData<S> {
@@ -185,6 +196,7 @@ impl<S> Clone for DenseData<S> {
             check: self.check.clone(),
             evals: self.evals.clone(),
             stiffness: self.stiffness.clone(),
+            slopes: self.slopes.clone(),
         }
     }
 }
@@ -318,10 +330,12 @@ impl<S: System> Solution<S> {
         };
         // The integrated span ends where the solution's times end (a terminal event or an
         // observer's stop between grid points included), not at the last grid point.
+        // (All three are in time order: their last elements suffice.)
         let last = self
             .t
-            .iter()
-            .chain(self.events.iter().map(|e| &e.t))
+            .last()
+            .into_iter()
+            .chain(self.events.last().map(|e| &e.t))
             .chain(dense.t.last())
             .fold(first, |a, &b| a.max(b));
         if !(first..=last).contains(&t) {
@@ -361,24 +375,47 @@ impl<S: System> Solution<S> {
             };
             if let Some(stencil) = grid.stencil(t) {
                 let points = stencil.range();
-                let len = points.len() * d;
-                let mut slopes = vec![0.0; 2 * len];
-                let mut scratch = Vec::new();
-                let (sa, sc) = slopes.split_at_mut(len);
-                for (j, p) in points.enumerate() {
-                    let at = p * d..(p + 1) * d;
-                    let to = j * d..(j + 1) * d;
-                    super::runs::slope(
-                        &*dense.system,
-                        &dense.answer[at.clone()],
-                        &mut sa[to.clone()],
-                        &mut scratch,
-                    )?;
-                    super::runs::slope(&*dense.system, &check[at], &mut sc[to], &mut scratch)?;
+                let mut memo = dense.slopes.borrow_mut();
+                let Slopes {
+                    answer: sa,
+                    check: sc,
+                    scratch,
+                } = &mut *memo;
+                if sa.len() != dense.answer.len() {
+                    sa.resize(dense.answer.len(), f64::NAN);
+                    sc.resize(dense.answer.len(), f64::NAN);
                 }
-                let (n, g) = dense.evals.get();
-                dense.evals.set((n, g + 2 * len / d.max(1)));
-                if grid.value(t, stencil, sa, sc, (rtol, atol), unit, k + 1, out) <= 1.0 {
+                let mut fresh = 0;
+                for p in points.clone() {
+                    let at = p * d..(p + 1) * d;
+                    if sa[at.start].is_nan() {
+                        let a = &dense.answer[at.clone()];
+                        super::runs::slope(&*dense.system, a, &mut sa[at.clone()], scratch)?;
+                        super::runs::slope(
+                            &*dense.system,
+                            &check[at.clone()],
+                            &mut sc[at],
+                            scratch,
+                        )?;
+                        fresh += 2;
+                    }
+                }
+                if fresh > 0 {
+                    let (n, g) = dense.evals.get();
+                    dense.evals.set((n, g + fresh));
+                }
+                let at = points.start * d..points.end * d;
+                let e = grid.value(
+                    t,
+                    stencil,
+                    &sa[at.clone()],
+                    &sc[at],
+                    (rtol, atol),
+                    unit,
+                    k + 1,
+                    out,
+                );
+                if e <= 1.0 {
                     return Ok(());
                 }
             }
