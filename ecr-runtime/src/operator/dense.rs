@@ -15,7 +15,7 @@ use super::simple::diagonal_block;
 use super::spectral::{SkewGenerator, SpectralBasis};
 use super::traits::{LinearOperator, PhiBank};
 use crate::error::{Error, Result};
-use crate::phi::{check_symmetric, expm_dd, symmetric_eigen, validate_matrix};
+use crate::phi::{check_symmetric, expm_dd_split, symmetric_eigen, validate_matrix};
 use crate::storage::ensure_allocatable;
 
 /// A general dense matrix `A` (non-normal allowed); φ by scaling and modified squaring
@@ -529,12 +529,15 @@ impl Symmetric {
         check_bank_values(phis.iter().copied(), || {
             real_overflow_cause(self.lambda.as_slice(), h, taus)
         })?;
+        // A matrix symmetric to the bit has symmetric powers: the double-double exponential
+        // then computes half of each product's entries.
+        let exact = self.a == self.a.transpose();
         let props = taus
             .iter()
             .enumerate()
             .map(|(i, tau)| {
                 if f.carries_dd(i) && d <= DD_PROPAGATOR_MAX_DIM {
-                    expm_dd(&(&self.a * (tau * h))).map(Some)
+                    expm_dd_split(&(&self.a * (tau * h)), None, exact).map(Some)
                 } else {
                     Ok(None)
                 }

@@ -85,7 +85,7 @@ impl NodeFunctions {
             Some((k, maps)) => {
                 let d = x.nrows();
                 let (mut out, lo) = if self.carries_dd(i) && d <= DD_PROPAGATOR_MAX_DIM {
-                    let (hi, lo) = crate::phi::expm_dd_split(x, x_lo)?;
+                    let (hi, lo) = crate::phi::expm_dd_split(x, x_lo, false)?;
                     (vec![hi], Some(lo))
                 } else if d <= DD_STAGE_PROPAGATOR_MAX_DIM {
                     (vec![crate::phi::expm_dd(x)?.0], None)
