@@ -1,5 +1,5 @@
 //! Ensembles on every core (`ecr_runtime::ensemble`), measured; `cargo bench --bench ensemble`
-//! (about a minute on 2 cores), or one part: `-- scaling`, `-- memory`.
+//! (a few minutes on 2 cores), or one part: `-- scaling`, `-- memory`, `-- banks`.
 //!
 //! - scaling: 10⁴ Hénon–Heiles members at the energy 1/8 from a 100 × 100 grid of (q2, p2) ∈
 //!   [−0.3, 0.3]² (q1 = 0, p1 from the energy), each to t = 10 at the tolerance 1e−8, its final
@@ -10,10 +10,19 @@
 //! - memory: 10⁶ members of the same kind to t = 1 at the tolerance 1e−6 (varying q2 and p2
 //!   over a 1000 × 1000 grid), their final q2 kept (a scalar): the peak resident memory of the
 //!   process (`VmHWM` in `/proc/self/status`, Linux), which must stay under 200 MB.
+//! - banks (criterion): 10⁴ members of one linear operator, a dense 8 × 8 A (four coupled
+//!   oscillators with a cubic nonlinearity, members differing in y₀), each solved on one
+//!   thread with its own φ-banks (as every solve did before `Ensemble::share_banks`) and with
+//!   the banks shared: with a fixed method (EC3P, h = 0.05, T = 1) and to the tolerance 1e−8
+//!   (T = 1).
 
+use criterion::Criterion;
 use ecr::problems::{HenonHeiles, HenonHeilesSystem};
 use ecr::runtime::ensemble::{Ensemble, MemberResult};
+use ecr::runtime::nalgebra::DMatrix;
+use ecr::runtime::operator::Dense;
 use ecr::runtime::solve::{Options, Problem};
+use ecr::runtime::system::Semilinear;
 use std::time::Instant;
 
 const ENERGY: f64 = 0.125;
@@ -153,6 +162,67 @@ fn memory() {
     }
 }
 
+/// 10⁴ members of one dense 8 × 8 operator, with their own φ-banks or shared ones.
+fn banks() {
+    let d = 8;
+    let mut a = DMatrix::zeros(d, d);
+    for i in 0..d / 2 {
+        a[(i, d / 2 + i)] = 1.0;
+        a[(d / 2 + i, i)] = -(1.0 + i as f64);
+        if i + 1 < d / 2 {
+            a[(d / 2 + i, i + 1)] = 0.1;
+            a[(d / 2 + i + 1, i)] = 0.1;
+        }
+    }
+    let system = Semilinear::new(
+        Dense::new(a).expect("an operator"),
+        |y: &[f64], g: &mut [f64]| {
+            g.fill(0.0);
+            for i in 0..4 {
+                g[4 + i] = -y[i].powi(3);
+            }
+        },
+    );
+    let n = 10_000;
+    let make = |_: &(), i: usize| {
+        let mut y0 = vec![0.0; 8];
+        y0[i % 4] = 0.1 + 0.5 * (i as f64 / n as f64);
+        Problem::new(&system, y0, (0.0, 1.0))
+    };
+    let one = pool(1);
+    let mut c = Criterion::default()
+        .sample_size(10)
+        .measurement_time(std::time::Duration::from_secs(30))
+        .configure_from_args();
+    let mut group = c.benchmark_group("banks");
+    for (name, options) in [
+        ("fixed", Options::fixed(3, 0.05).t_eval([1.0])),
+        ("tol", Options::tolerance(1e-8).t_eval([1.0])),
+    ] {
+        for share in [false, true] {
+            let ensemble = Ensemble::new((), n, make);
+            let ensemble = if share {
+                ensemble.share_banks()
+            } else {
+                ensemble
+            };
+            let id = format!("{name}/{}", if share { "shared" } else { "own" });
+            group.bench_function(id, |b| {
+                b.iter(|| {
+                    let r = one.install(|| {
+                        ensemble
+                            .solve(&options, |_, s| s.last().map_or(f64::NAN, |y| y[0]))
+                            .expect("valid options")
+                    });
+                    assert_eq!(r.verified(), n);
+                    r
+                })
+            });
+        }
+    }
+    group.finish();
+}
+
 fn main() {
     let parts: Vec<String> = std::env::args()
         .skip(1)
@@ -164,5 +234,8 @@ fn main() {
     }
     if all || parts.iter().any(|p| p == "memory") {
         memory();
+    }
+    if all || parts.iter().any(|p| p == "banks") {
+        banks();
     }
 }

@@ -64,8 +64,9 @@
 //!   (`ecr::special`).
 //! - `baselines`: the peer methods of the comparisons (`ecr::baselines`; DOP853 through
 //!   `ode_solvers`); implies `problems`.
-//! - `cli` (default): the `ecr` command (`reproduce`, `run`, `bench`, `tables`); implies
-//!   `baselines`.
+//! - `cli` (default): the `ecr` command (`reproduce`, `run`, `bench`, `tables`, `ensemble`);
+//!   implies `baselines`.
+//! - `mpi`: ensembles over the ranks of MPI (`ecr::mpi`), with an MPI library installed.
 #![deny(missing_docs)]
 
 pub use ecr_codegen as codegen;
@@ -76,6 +77,9 @@ pub use ecr_runtime::nalgebra;
 /// Everything a program that solves a problem needs: `use ecr::prelude::*;`.
 pub use ecr_runtime::prelude;
 pub use ecr_runtime::solve::{Options, Problem, Solution};
+
+#[cfg(feature = "mpi")]
+pub mod mpi;
 
 /// The repository's guides (`docs/*.md`) as pages of this documentation: the same text.
 ///

@@ -55,6 +55,8 @@ pub enum Error {
     /// A solve could not verify its answer to the tolerance; why, in words (the best
     /// solution is in the `SolveError` this came from).
     Unverified(String),
+    /// Reading or writing a file failed (an ensemble's table); what and why, in words.
+    Io(String),
     /// A step of an integration failed; where, and why (`source`).
     AtStep {
         /// The number of the failed step (1 for the first).
@@ -121,6 +123,7 @@ impl fmt::Display for Error {
                  within the step, or the step size is unstable for the problem; try a smaller h"
             ),
             Error::Unverified(msg) => write!(f, "the answer could not be verified: {msg}"),
+            Error::Io(msg) => write!(f, "{msg}"),
             Error::AtStep { step, t, h, source } => {
                 write!(f, "step {step} from t = {t:?} (h = {h:?}) failed: {source}")
             }

@@ -1,6 +1,9 @@
 //! `ecr ensemble`: a test problem over a grid of parameters and initial values, every member
-//! solved with the same options on every core, one CSV row per member; `--shard K/N` and
-//! `ecr ensemble merge` for the jobs of a job array; the ranks of MPI with the `mpi` feature.
+//! solved with the same options on every core, one CSV row per member written as the members
+//! finish (`--resume` continues a killed run); `--summary` for statistics instead of rows;
+//! `--shard K/N` and `ecr ensemble merge` for the jobs of a job array; the ranks of MPI with
+//! the `mpi` feature. A thin layer over the library's `Ensemble::write_table`,
+//! `Ensemble::summarize`, `merge_parts` and `ecr::mpi::write_table`.
 //!
 //! # The table
 //!
@@ -8,33 +11,38 @@
 //! the order of the `--vary` options), `status`, `t` (where the solution ends), the final
 //! state (`q_end, p_end` or `q1_end, q2_end, p1_end, p2_end`), `error_estimate` (in units of
 //! the tolerance; empty for a fixed step), `energy_error` (|H(y(t)) − H(y₀)| / |H(y₀)| at
-//! the final time), `g_evals` (every evaluation of g of the member's solve), `message` (why
-//! the answer is not verified, or the failure) and `cpu_seconds` (the CPU time of the member,
-//! last so that tables of two runs compare equal without it). Numbers are written as Rust's
+//! the final time), `g_evals` (every evaluation of g of the member's solve) and `message`
+//! (why the answer is not verified, or the failure); with `--cpu-seconds`, `cpu_seconds` (the
+//! CPU time of the member, which differs from run to run) last. Numbers are written as Rust's
 //! `{:?}` writes them, the shortest text that reads back to the same f64.
 //!
 //! # Parts
 //!
 //! A part (`--shard K/N`) holds the members K − 1, K − 1 + N, …: a line `# ecr ensemble part
 //! K/N of M members: …` naming the ensemble, the header row, its rows, and the line `# end of
-//! part K/N: R rows` last. `merge` refuses parts that are missing, given twice, of another
-//! ensemble, or without their end line (a shard killed or still running), and writes rows
-//! byte for byte those of the single run, in member order.
+//! part K/N: R rows, sha256 …` last. `merge` refuses parts that are missing, given twice, of
+//! another ensemble, without their end line (a shard killed or still running) or whose rows
+//! do not match their digest, and writes rows byte for byte those of the single run, in
+//! member order.
 
 use super::UsageError;
 use super::output::OutputFile;
 use clap::{Args, Subcommand, ValueEnum};
 use ecr::problems::{Duffing, DuffingSystem, HenonHeiles, HenonHeilesSystem};
-use ecr_runtime::ensemble::{Control, Ensemble, MemberError, MemberResult};
-use ecr_runtime::solve::{Options, Problem, Solution, linspace};
-use std::io::Write;
+use ecr_runtime::ensemble::{
+    Cell, Column, Control, Ensemble, Progress, Summary, Table, TableReport, merge_parts,
+    table_to_npy,
+};
+use ecr_runtime::operator::LinearOperator;
+use ecr_runtime::solve::{Options, Problem, Solution};
+use ecr_runtime::system::System;
+use indicatif::ProgressBar;
+use std::io::{IsTerminal, Write};
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::time::Instant;
-
-#[cfg(feature = "mpi")]
-mod mpi;
+use std::time::{Duration, Instant};
 
 /// Arguments of `ecr ensemble`.
 #[derive(Args, Debug)]
@@ -42,14 +50,19 @@ mod mpi;
     args_conflicts_with_subcommands = true,
     subcommand_negates_reqs = true,
     after_help = "Members: the cartesian product of the --vary values, the first --vary \
-                  slowest (member i = (i1 n2 + i2) n3 + i3 for three). The table is written \
-                  atomically: FILE holds the previous table or the complete new one. A member \
-                  that fails is a row with its status and message; bad input prints one line \
-                  starting with 'error: ' on stderr and exits with status 2; an interrupted run \
-                  (Ctrl-C) writes no table and exits with status 130. Job arrays: run each \
-                  part with --shard K/N (K = 1..N), then 'ecr ensemble merge --out FILE \
-                  PART...'. MPI (an ecr built with --features mpi): 'mpirun -n N ecr ensemble \
-                  ...' splits the members over the ranks; rank 0 writes FILE."
+                  slowest (member i = (i1 n2 + i2) n3 + i3 for three). Rows are written in \
+                  member order as the members finish, synced every second, to a hidden \
+                  unfinished file beside FILE, renamed to FILE when complete: FILE holds the \
+                  previous table or the complete new one. A killed or interrupted run keeps \
+                  the rows it finished: the same command with --resume solves only the \
+                  members that are missing. Exit status: 0 every member verified (or ok); 3 \
+                  the table is written but some members are not verified (unverified, \
+                  failed, panicked: their rows say why); 2 bad input (one line starting \
+                  with 'error: ' on stderr); 130 or 143 interrupted (SIGINT, SIGTERM). Job \
+                  arrays: run each part with --shard K/N (K = 1..N), then 'ecr ensemble \
+                  merge --out FILE PART...'. MPI (an ecr built with --features mpi): \
+                  'mpirun -n N ecr ensemble ...' splits the members over the ranks; rank 0 \
+                  writes FILE."
 )]
 pub struct EnsembleArgs {
     #[command(subcommand)]
@@ -61,11 +74,12 @@ pub struct EnsembleArgs {
 #[derive(Subcommand, Debug)]
 enum EnsembleCommand {
     /// Join the N parts written by --shard K/N into the table of the whole ensemble, byte for
-    /// byte the table of one run (its CPU column aside).
+    /// byte the table of one run.
     ///
-    /// Parts that are missing, given twice, of different ensembles, or without their end line
-    /// (a shard killed or still running) are refused with one line starting with 'error: ' on
-    /// stderr and exit status 2.
+    /// Parts that are missing, given twice, of different ensembles, without their end line
+    /// (a shard killed or still running), or whose rows do not match the digest of their end
+    /// line (changed since) are refused with one line starting with 'error: ' on stderr and
+    /// exit status 2.
     Merge(MergeArgs),
 }
 
@@ -78,6 +92,9 @@ struct MergeArgs {
     /// The part files, in any order.
     #[arg(required = true, value_name = "PART")]
     parts: Vec<PathBuf>,
+    /// Also write the merged table as NPY (see `ecr ensemble --npy`).
+    #[arg(long, value_name = "FILE")]
+    npy: Option<PathBuf>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, ValueEnum)]
@@ -112,6 +129,15 @@ impl ProblemArg {
             ProblemArg::HenonHeiles => &["q1_end", "q2_end", "p1_end", "p2_end"],
         }
     }
+
+    /// Whether members with different values of the --vary parameters `varied` have
+    /// different linear operators (duffing's A holds ω and k).
+    fn operator_varies(self, varied: &[Option<usize>]) -> bool {
+        match self {
+            ProblemArg::Duffing => varied[0].is_some() || varied[1].is_some(),
+            ProblemArg::HenonHeiles => false,
+        }
+    }
 }
 
 /// `NAME=FROM:TO:COUNT`.
@@ -124,10 +150,17 @@ struct Vary {
 }
 
 impl Vary {
-    /// The COUNT values: `linspace(FROM, TO, COUNT)` (FROM + (TO − FROM) j / (COUNT − 1), TO
-    /// exactly; the values numpy's `linspace` gives).
-    fn values(&self) -> Vec<f64> {
-        linspace(self.from, self.to, self.count)
+    /// Value `j` of the COUNT values `linspace(FROM, TO, COUNT)` (FROM + (TO − FROM) j /
+    /// (COUNT − 1), TO exactly; the values numpy's `linspace` gives), computed when needed:
+    /// nothing is stored per value.
+    fn value(&self, j: usize) -> f64 {
+        if j + 1 == self.count {
+            self.to
+        } else if self.count == 1 {
+            self.from
+        } else {
+            self.from + (self.to - self.from) * (j as f64 / (self.count - 1) as f64)
+        }
     }
 }
 
@@ -144,10 +177,12 @@ fn parse_vary(text: &str) -> Result<Vary, String> {
         }
     };
     let (from, to) = (number(from)?, number(to)?);
-    let count: usize = count
-        .trim()
-        .parse()
-        .map_err(|_| format!("COUNT '{count}' is not a whole number >= 1"))?;
+    let count: usize = count.trim().parse().map_err(|_| {
+        format!(
+            "COUNT '{count}' is not a whole number from 1 to {}",
+            usize::MAX
+        )
+    })?;
     if count == 0 {
         return Err("COUNT must be >= 1".to_string());
     }
@@ -172,15 +207,28 @@ struct Shard {
 }
 
 fn parse_shard(text: &str) -> Result<Shard, String> {
-    let (k, n) = text.split_once('/').ok_or("expected K/N, e.g. 3/8")?;
+    let usage = "K/N with whole numbers 1 <= K <= N, e.g. 3/8 for the third of eight parts";
+    let (k, n) = text
+        .split_once('/')
+        .ok_or_else(|| format!("--shard {text}: expected {usage}"))?;
     let (k, n): (usize, usize) = match (k.trim().parse(), n.trim().parse()) {
         (Ok(k), Ok(n)) => (k, n),
-        _ => return Err("expected K/N with whole numbers, e.g. 3/8".to_string()),
+        _ => return Err(format!("--shard {text}: expected {usage}")),
     };
     if n == 0 || k == 0 || k > n {
-        return Err(format!("part {k} of {n}: K must be in 1..=N"));
+        return Err(format!(
+            "--shard {text}: part {k} of {n}: K must be in 1..=N"
+        ));
     }
     Ok(Shard { k, n })
+}
+
+/// A quantile in [0, 1].
+fn parse_quantile(text: &str) -> Result<f64, String> {
+    match text.trim().parse::<f64>() {
+        Ok(q) if (0.0..=1.0).contains(&q) => Ok(q),
+        _ => Err(format!("'{text}' is not a quantile in [0, 1]")),
+    }
 }
 
 /// Arguments of `ecr ensemble` (without `merge`).
@@ -221,30 +269,58 @@ struct SolveArgs {
     /// Final time T ≥ 0 (every member from t = 0).
     #[arg(long, allow_negative_numbers = true, required = true)]
     t_end: Option<f64>,
-    /// The table (CSV), written atomically.
+    /// The table (CSV), or with --summary the summary (CSV), put in place when complete.
     #[arg(long, required = true)]
     out: Option<PathBuf>,
-    /// Threads [default: RAYON_NUM_THREADS, else one per CPU this process may use].
-    #[arg(long)]
-    threads: Option<usize>,
+    /// Threads [default: RAYON_NUM_THREADS, else one per CPU this process may use; at most
+    /// four per CPU].
+    #[arg(long, allow_negative_numbers = true)]
+    threads: Option<i64>,
     /// Solve only part K of N (K = 1..N: the members K − 1, K − 1 + N, …) and write it as a
     /// part file for 'ecr ensemble merge'.
-    #[arg(long, value_name = "K/N", value_parser = parse_shard)]
+    #[arg(long, value_name = "K/N", allow_hyphen_values = true, value_parser = parse_shard)]
     shard: Option<Shard>,
+    /// Continue the unfinished table that a killed or interrupted run of the same command
+    /// left beside --out: keep its rows, solve only the members that are missing.
+    #[arg(long)]
+    resume: bool,
+    /// Write statistics over the members instead of a row per member: per output column,
+    /// count, mean, variance, min, max and the --quantiles (memory independent of the
+    /// members; not with --shard, --resume or MPI).
+    #[arg(long)]
+    summary: bool,
+    /// The quantiles of --summary [default: 0.05,0.25,0.5,0.75,0.95].
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_parser = parse_quantile,
+        requires = "summary"
+    )]
+    quantiles: Vec<f64>,
+    /// No progress lines on stderr.
+    #[arg(long)]
+    quiet: bool,
+    /// A last column cpu_seconds, each member's CPU time (it differs from run to run: the
+    /// tables of two runs are then no longer the same bytes).
+    #[arg(long)]
+    cpu_seconds: bool,
+    /// Also write the table as NPY (a structured array, every number's bits kept; see
+    /// docs/ensembles.md), converted from the complete CSV table.
+    #[arg(long, value_name = "FILE")]
+    npy: Option<PathBuf>,
 }
 
 /// The checked inputs of a run.
 struct Plan {
     problem: ProblemArg,
     vary: Vec<Vary>,
-    /// The values of each --vary.
-    values: Vec<Vec<f64>>,
     /// For each of the problem's parameters, the --vary that sets it.
     source: Vec<Option<usize>>,
     energy: Option<f64>,
     options: OptionsSpec,
     t_end: f64,
     members: usize,
+    cpu_seconds: bool,
 }
 
 /// What the options are made from (an `Options` is made per call: it is not `Clone`).
@@ -345,26 +421,30 @@ impl Plan {
             .vary
             .iter()
             .try_fold(1usize, |m, v| m.checked_mul(v.count))
-            .ok_or_else(|| UsageError("the --vary counts multiply beyond 2^64 members".into()))?;
-        let values = args.vary.iter().map(Vary::values).collect();
+            .ok_or_else(|| {
+                UsageError(format!(
+                    "the --vary counts multiply to more than {} members",
+                    usize::MAX
+                ))
+            })?;
         Ok(Plan {
             problem,
             vary: args.vary.clone(),
-            values,
             source,
             energy: args.energy,
             options,
             t_end,
             members,
+            cpu_seconds: args.cpu_seconds,
         })
     }
 
     /// The values of member `i`'s --vary options, in their order (the first slowest).
     fn point(&self, mut i: usize) -> Vec<f64> {
         let mut point = vec![0.0; self.vary.len()];
-        for (j, values) in self.values.iter().enumerate().rev() {
-            point[j] = values[i % values.len()];
-            i /= values.len();
+        for (j, v) in self.vary.iter().enumerate().rev() {
+            point[j] = v.value(i % v.count);
+            i /= v.count;
         }
         point
     }
@@ -399,22 +479,33 @@ impl Plan {
         matches!(self.options, OptionsSpec::Fixed { .. })
     }
 
-    fn header(&self) -> String {
-        let mut h = vec!["member".to_string()];
-        h.extend(self.vary.iter().map(|v| v.name.clone()));
-        h.push("status".into());
-        h.push("t".into());
-        h.extend(self.problem.state().iter().map(|s| s.to_string()));
-        for c in [
-            "error_estimate",
-            "energy_error",
-            "g_evals",
-            "message",
-            "cpu_seconds",
-        ] {
-            h.push(c.into());
-        }
-        h.join(",") + "\n"
+    /// The output columns: t, the final state, the estimate, the energy error, the count of
+    /// evaluations of g.
+    fn outputs(&self) -> Vec<Column> {
+        let mut c = vec![Column::f64("t")];
+        c.extend(self.problem.state().iter().map(|s| Column::f64(*s)));
+        c.push(Column::f64("error_estimate"));
+        c.push(Column::f64("energy_error"));
+        c.push(Column::u64("g_evals"));
+        c
+    }
+
+    /// The table of the run (a part file for --shard).
+    fn table(&self, part: bool) -> Table<'_> {
+        let inputs = self
+            .vary
+            .iter()
+            .map(|v| Column::f64(v.name.clone()))
+            .collect();
+        let table = Table::new(self.describe(), self.outputs()).inputs(inputs, |i, cells| {
+            cells.extend(self.point(i).into_iter().map(Cell::F64));
+        });
+        let table = if self.cpu_seconds {
+            table.cpu_seconds()
+        } else {
+            table
+        };
+        if part { table.as_part() } else { table }
     }
 }
 
@@ -458,190 +549,117 @@ fn henon_heiles_member(
     )
 }
 
-/// What is kept of a member's solution.
-#[derive(Clone, Copy, Debug)]
-struct Kept {
-    t: f64,
-    y: [f64; 4],
-    error_estimate: Option<f64>,
-    energy_error: Option<f64>,
-    g_evals: usize,
-}
-
-fn keep(solution: &Solution) -> Kept {
-    let mut y = [f64::NAN; 4];
-    if let Some(last) = solution.last() {
-        for (a, b) in y.iter_mut().zip(last) {
-            *a = *b;
-        }
-    }
-    Kept {
-        t: solution.t.last().copied().unwrap_or(f64::NAN),
-        y,
-        error_estimate: solution.error_estimate,
-        energy_error: solution.energy_error(),
-        g_evals: solution.stats.total_g_evals(),
-    }
-}
-
-/// A field of a CSV row: as it is, or quoted (RFC 4180) where it holds a comma or a quote;
-/// line breaks become spaces, so that every row is one line.
-fn csv_field(text: &str) -> String {
-    let text = text.replace(['\r', '\n'], " ");
-    if text.contains([',', '"']) {
-        format!("\"{}\"", text.replace('"', "\"\""))
-    } else {
-        text
-    }
-}
-
-fn number(x: Option<f64>) -> String {
-    x.map_or_else(String::new, |x| format!("{x:?}"))
-}
-
-/// The row of a member (with its line break).
-fn row(plan: &Plan, fixed: bool, m: &MemberResult<Kept>) -> String {
-    let dim = plan.problem.state().len();
-    let mut fields = vec![m.index.to_string()];
-    fields.extend(plan.point(m.index).iter().map(|v| format!("{v:?}")));
-    let (status, kept, message) = match &m.outcome {
-        Ok(k) => (
-            if fixed { "ok" } else { "verified" },
-            Some(k),
-            String::new(),
-        ),
-        Err(MemberError::Unverified { reason, output }) => {
-            ("unverified", Some(output), reason.clone())
-        }
-        Err(MemberError::Failed(e)) => ("failed", None, e.to_string()),
-        Err(MemberError::Panicked(msg)) => ("panicked", None, msg.clone()),
-        Err(e) => ("not-run", None, e.to_string()),
-    };
-    fields.push(status.to_string());
-    match kept {
-        Some(k) => {
-            fields.push(format!("{:?}", k.t));
-            fields.extend(k.y[..dim].iter().map(|v| format!("{v:?}")));
-            fields.push(number(k.error_estimate));
-            fields.push(number(k.energy_error));
-            fields.push(k.g_evals.to_string());
-        }
-        None => fields.extend(std::iter::repeat_n(String::new(), dim + 4)),
-    }
-    fields.push(csv_field(&message));
-    fields.push(format!("{:?}", m.cpu.as_secs_f64()));
-    fields.join(",") + "\n"
+/// The output cells of a member's solution: t, the final state (`dim` values), the estimate,
+/// the energy error, the evaluations of g.
+fn output_cells(dim: usize, solution: &Solution) -> Vec<Cell> {
+    let mut cells = Vec::with_capacity(dim + 4);
+    cells.push(Cell::F64(solution.t.last().copied().unwrap_or(f64::NAN)));
+    let last = solution.last();
+    cells.extend((0..dim).map(|c| Cell::F64(last.map_or(f64::NAN, |y| y[c]))));
+    cells.push(solution.error_estimate.into());
+    cells.push(solution.energy_error().into());
+    cells.push(Cell::U64(solution.stats.total_g_evals() as u64));
+    cells
 }
 
 /// Where the run has got to, for the interrupt handler.
 static DONE: AtomicUsize = AtomicUsize::new(0);
 static TOTAL: AtomicUsize = AtomicUsize::new(0);
 
-/// On SIGINT or SIGTERM: one line on stderr saying how far the run got, exit status 130 or
-/// 143, no table (it is written only at the end, atomically).
+/// On SIGINT or SIGTERM: one line on stderr saying how far the run got and that its rows are
+/// kept for --resume, exit status 130 or 143.
 fn report_interrupts() {
     super::interrupt::on_interrupt(|what| {
         format!(
-            "{what} after {} of {} members; no table written",
+            "{what} after {} of {} members; the rows finished are kept: run the same command \
+             with --resume to solve the rest",
             DONE.load(Ordering::Relaxed),
             TOTAL.load(Ordering::Relaxed)
         )
     });
 }
 
-/// The members of part k of n (0-based) of `members`, as the library splits them.
-fn part_len(members: usize, k: usize, n: usize) -> usize {
-    if k < members {
-        (members - k).div_ceil(n)
-    } else {
-        0
-    }
+/// How often a progress line is printed where stderr is not a terminal (the environment
+/// variable `ECR_PROGRESS_SECONDS` changes it).
+const PROGRESS_EVERY: Duration = Duration::from_secs(5);
+
+/// Progress: a bar on a terminal, a line every few seconds elsewhere (batch logs), nothing
+/// with --quiet.
+struct Reporter {
+    bar: Option<ProgressBar>,
+    every: Option<Duration>,
+    start: Instant,
+    last: Mutex<Instant>,
 }
 
-/// How the outcomes were, for the summary line.
-#[derive(Default)]
-struct Counts {
-    verified: usize,
-    unverified: usize,
-    failed: usize,
-}
-
-impl Counts {
-    fn add(&mut self, m: &MemberResult<Kept>) {
-        match &m.outcome {
-            Ok(_) => self.verified += 1,
-            Err(MemberError::Unverified { .. }) => self.unverified += 1,
-            Err(_) => self.failed += 1,
+impl Reporter {
+    fn new(total: usize, quiet: bool) -> Reporter {
+        TOTAL.store(total, Ordering::Relaxed);
+        let terminal = std::io::stderr().is_terminal();
+        let every = std::env::var("ECR_PROGRESS_SECONDS")
+            .ok()
+            .and_then(|s| s.parse::<f64>().ok())
+            .filter(|s| s.is_finite() && *s >= 0.0)
+            .map_or(PROGRESS_EVERY, Duration::from_secs_f64);
+        let now = Instant::now();
+        Reporter {
+            bar: (!quiet && terminal).then(|| super::progress::count_bar(total as u64, "members")),
+            every: (!quiet && !terminal).then_some(every),
+            start: now,
+            last: Mutex::new(now),
         }
     }
 
-    fn describe(&self, fixed: bool) -> String {
-        format!(
-            "{} {}, {} unverified, {} failed",
-            self.verified,
-            if fixed { "ok" } else { "verified" },
-            self.unverified,
-            self.failed
-        )
-    }
-}
-
-/// Solves part k of n (0-based) of the plan's members on the current rayon pool: the rows,
-/// in member order, and the counts.
-fn solve_part(plan: &Plan, k: usize, n: usize) -> Result<(Vec<String>, Counts), UsageError> {
-    let total = part_len(plan.members, k, n);
-    TOTAL.store(total, Ordering::Relaxed);
-    let bar = super::progress::count_bar(total as u64, "members");
-    let control = Control::new().part(k, n).progress(|p| {
+    fn update(&self, p: &Progress) -> ControlFlow<()> {
         DONE.store(p.done, Ordering::Relaxed);
-        bar.set_position(p.done as u64);
-        ControlFlow::Continue(())
-    });
-    let options = plan.options.options(plan.t_end);
-    let fixed = plan.fixed();
-    let t_end = plan.t_end;
-    let result = match plan.problem {
-        ProblemArg::Duffing => {
-            let ensemble = Ensemble::new(plan, plan.members, |plan: &&Plan, i| {
-                duffing_member(&plan.parameters(i), t_end)
-            });
-            ensemble.solve_with(&options, &control, |_, s| keep(s))
+        if let Some(bar) = &self.bar {
+            bar.set_position(p.done as u64);
         }
-        ProblemArg::HenonHeiles => {
-            let ensemble = Ensemble::new(plan, plan.members, |plan: &&Plan, i| {
-                henon_heiles_member(&plan.parameters(i), plan.energy, t_end)
-            });
-            ensemble.solve_with(&options, &control, |_, s| keep(s))
+        if let Some(every) = self.every {
+            let now = Instant::now();
+            let mut last = self.last.lock().unwrap_or_else(|e| e.into_inner());
+            if now.duration_since(*last) >= every || p.done == p.total {
+                *last = now;
+                let seconds = now.duration_since(self.start).as_secs_f64();
+                let rate = (p.done - p.skipped) as f64 / seconds.max(1e-9);
+                let left = (p.total - p.done) as f64 / rate.max(1e-300);
+                let _ = writeln!(
+                    std::io::stderr(),
+                    "ecr ensemble: {} of {} members ({:.1} %), {:.3} members/s, about {} left",
+                    p.done,
+                    p.total,
+                    100.0 * p.done as f64 / p.total.max(1) as f64,
+                    rate,
+                    duration(left)
+                );
+            }
+        }
+        ControlFlow::Continue(())
+    }
+
+    fn finish(&self) {
+        if let Some(bar) = &self.bar {
+            bar.finish_and_clear();
         }
     }
-    .map_err(|e| UsageError(e.to_string()))?;
-    bar.finish_and_clear();
-    let mut counts = Counts::default();
-    let rows = result
-        .members
-        .iter()
-        .map(|m| {
-            counts.add(m);
-            row(plan, fixed, m)
-        })
-        .collect();
-    Ok((rows, counts))
 }
 
-/// The first line of a part file.
-fn part_head(plan: &Plan, shard: Shard) -> String {
-    format!(
-        "# ecr ensemble part {}/{} of {} members: {}\n",
-        shard.k,
-        shard.n,
-        plan.members,
-        plan.describe()
-    )
+/// Seconds as "3 h 12 min", "4 min 05 s", "12 s".
+fn duration(seconds: f64) -> String {
+    if !seconds.is_finite() {
+        return "an unknown time".into();
+    }
+    let s = seconds.round() as u64;
+    match s {
+        0..60 => format!("{s} s"),
+        60..3600 => format!("{} min {:02} s", s / 60, s % 60),
+        _ => format!("{} h {:02} min", s / 3600, (s % 3600) / 60),
+    }
 }
 
-/// The last line of a part file.
-fn part_end(shard: Shard, rows: usize) -> String {
-    format!("# end of part {}/{}: {rows} rows\n", shard.k, shard.n)
+/// The members of part k of n (0-based) of `members`.
+fn part_len(members: usize, k: usize, n: usize) -> usize {
+    ecr_runtime::ensemble::part_len(members, k, n)
 }
 
 /// Runs `ecr ensemble` (or `merge`).
@@ -652,6 +670,21 @@ pub fn run(args: &EnsembleArgs, out: &mut dyn Write) -> Result<(), UsageError> {
     }
 }
 
+/// The threads: `--threads` checked against four per CPU this process may use.
+fn threads(threads: Option<i64>) -> Result<Option<usize>, UsageError> {
+    let Some(n) = threads else {
+        return Ok(None);
+    };
+    let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let most = 4 * cpus;
+    if n < 1 || n as u64 > most as u64 {
+        return Err(UsageError(format!(
+            "--threads {n}: between 1 and {most} (four per CPU this process may use: {cpus})"
+        )));
+    }
+    Ok(Some(n as usize))
+}
+
 /// Runs `f` on a pool of `threads` threads, or on rayon's global pool.
 fn with_threads<R: Send>(
     threads: Option<usize>,
@@ -659,7 +692,6 @@ fn with_threads<R: Send>(
 ) -> Result<R, UsageError> {
     match threads {
         None => Ok(f()),
-        Some(0) => Err(UsageError("--threads must be >= 1".into())),
         Some(n) => rayon::ThreadPoolBuilder::new()
             .num_threads(n)
             .build()
@@ -683,22 +715,161 @@ fn mpi_launch_without_mpi() -> Option<usize> {
     .find(|&n| n > 1)
 }
 
+/// How a run writes: a table (whole or part), a summary, or a table over MPI ranks.
+enum Mode<'a> {
+    Table {
+        path: &'a Path,
+        shard: Option<Shard>,
+        resume: bool,
+    },
+    Summary {
+        path: &'a Path,
+        quantiles: &'a [f64],
+    },
+    #[cfg(feature = "mpi")]
+    Mpi {
+        world: &'a ecr::mpi::World,
+        path: &'a Path,
+        resume: bool,
+    },
+}
+
+/// What a run did, for its summary line and exit status.
+struct Outcome {
+    report: TableReport,
+}
+
+/// The ensemble of `make` (shared φ-banks unless the operator varies) run in `mode`.
+fn execute<S, M>(
+    plan: &Plan,
+    make: M,
+    mode: &Mode<'_>,
+    reporter: &Reporter,
+) -> Result<Outcome, UsageError>
+where
+    S: System,
+    <S::Op as LinearOperator>::Bank: Send + Sync,
+    M: Fn(&(), usize) -> ecr_runtime::Result<Problem<S>> + Sync,
+{
+    let mut ensemble = Ensemble::new((), plan.members, make);
+    if !plan.problem.operator_varies(&plan.source) {
+        ensemble = ensemble.share_banks();
+    }
+    let options = plan.options.options(plan.t_end);
+    let dim = plan.problem.state().len();
+    let output = |_: usize, s: &Solution| output_cells(dim, s);
+    let error = |e: ecr_runtime::Error| UsageError(e.to_string());
+    let report = match *mode {
+        Mode::Table {
+            path,
+            shard,
+            resume,
+        } => {
+            let (k, n) = shard.map_or((0, 1), |s| (s.k - 1, s.n));
+            let mut control = Control::new().part(k, n).progress(|p| reporter.update(p));
+            if resume {
+                control = control.resume();
+            }
+            let table = plan.table(shard.is_some());
+            ensemble
+                .write_table(&options, &control, &table, output, path)
+                .map_err(error)?
+        }
+        Mode::Summary { path, quantiles } => {
+            let mut file = OutputFile::stage(path)?;
+            let outputs = plan.outputs();
+            let summary = Summary::new(1, outputs.len(), quantiles).map_err(error)?;
+            let control = Control::new().progress(|p| reporter.update(p));
+            let result = ensemble
+                .summarize(&options, &control, summary, |i, s, values| {
+                    for (v, c) in values.iter_mut().zip(output(i, s)) {
+                        *v = match c {
+                            Cell::F64(x) => x,
+                            Cell::U64(n) => n as f64,
+                            Cell::Empty => f64::NAN,
+                        };
+                    }
+                })
+                .map_err(error)?;
+            let io =
+                |e: std::io::Error| UsageError(format!("cannot write '{}': {e}", path.display()));
+            let mut text = "output,count,non_finite,mean,variance,min,max".to_string();
+            for q in quantiles {
+                text += &format!(",q{q:?}");
+            }
+            text.push('\n');
+            for (c, column) in outputs.iter().enumerate() {
+                let s = result.summary.get(0, c);
+                text += &format!(
+                    "{},{},{},{:?},{:?},{:?},{:?}",
+                    column.name, s.count, s.non_finite, s.mean, s.variance, s.min, s.max
+                );
+                for (_, v) in &s.quantiles {
+                    text += &format!(",{v:?}");
+                }
+                text.push('\n');
+            }
+            file.write_all(text.as_bytes()).map_err(io)?;
+            file.commit()?;
+            TableReport {
+                members: plan.members,
+                written: plan.members,
+                verified: result.summary.members() as usize,
+                unverified: result.unverified,
+                failed: result.failed,
+                stats: result.stats,
+                complete: !result.stopped,
+                ..TableReport::default()
+            }
+        }
+        #[cfg(feature = "mpi")]
+        Mode::Mpi {
+            world,
+            path,
+            resume,
+        } => {
+            let mut control = Control::new().progress(|p| reporter.update(p));
+            if resume {
+                control = control.resume();
+            }
+            let table = plan.table(false);
+            ecr::mpi::write_table(world, &ensemble, &options, &control, &table, output, path)
+                .map_err(error)?
+        }
+    };
+    Ok(Outcome { report })
+}
+
 fn solve(args: &SolveArgs, out: &mut dyn Write) -> Result<(), UsageError> {
     let plan = Plan::new(args)?;
     let path = args
         .out
         .as_deref()
         .ok_or_else(|| UsageError("--out is required".into()))?;
-    // The rows held until the end: a row is about 200 bytes of text, and what the library
-    // keeps per member about as much again.
-    super::memory::check(
-        &format!("an ensemble of {} members", plan.members),
-        32.0 * 1024.0 * 1024.0 + 512.0 * plan.members as f64,
-    )?;
-    #[cfg(feature = "mpi")]
-    if let Some(world) = mpi::World::init()? {
-        return mpi::solve(&world, &plan, args, path, out);
+    let threads = threads(args.threads)?;
+    let quantiles: Vec<f64> = if args.quantiles.is_empty() {
+        vec![0.05, 0.25, 0.5, 0.75, 0.95]
+    } else {
+        args.quantiles.clone()
+    };
+    if args.npy.is_some() && (args.summary || args.shard.is_some()) {
+        return Err(UsageError(
+            "--npy writes the table of the whole ensemble: not with --summary, and for \
+             --shard give it to 'ecr ensemble merge'"
+                .into(),
+        ));
     }
+    if args.summary && (args.shard.is_some() || args.resume) {
+        return Err(UsageError(
+            "--summary keeps statistics in one process, not rows: it does not go with \
+             --shard or --resume (write the table, or summarise in one run)"
+                .into(),
+        ));
+    }
+    #[cfg(feature = "mpi")]
+    let world = ecr::mpi::World::from_launcher().map_err(|e| UsageError(e.to_string()))?;
+    #[cfg(feature = "mpi")]
+    let world = world.filter(|w| w.size() > 1);
     #[cfg(not(feature = "mpi"))]
     if let Some(n) = mpi_launch_without_mpi() {
         return Err(UsageError(format!(
@@ -706,189 +877,113 @@ fn solve(args: &SolveArgs, out: &mut dyn Write) -> Result<(), UsageError> {
              would solve the whole ensemble (build with --features mpi, or run one process)"
         )));
     }
-    let mut file = OutputFile::stage(path)?;
+    let mode = match () {
+        #[cfg(feature = "mpi")]
+        () if world.is_some() => {
+            if args.shard.is_some() || args.summary {
+                return Err(UsageError(
+                    "the ranks of MPI split the members already: --shard and --summary are \
+                     for one process"
+                        .into(),
+                ));
+            }
+            Mode::Mpi {
+                world: world.as_ref().expect("checked"),
+                path,
+                resume: args.resume,
+            }
+        }
+        () if args.summary => Mode::Summary {
+            path,
+            quantiles: &quantiles,
+        },
+        () => Mode::Table {
+            path,
+            shard: args.shard,
+            resume: args.resume,
+        },
+    };
+    #[cfg(feature = "mpi")]
+    let (rank, ranks) = world.as_ref().map_or((0, 1), |w| (w.rank(), w.size()));
+    #[cfg(not(feature = "mpi"))]
+    let (rank, ranks) = (0, 1);
+    let (k, n) = args.shard.map_or((rank, ranks), |s| (s.k - 1, s.n));
+    let reporter = Reporter::new(part_len(plan.members, k, n), args.quiet || rank > 0);
     report_interrupts();
     let start = Instant::now();
-    let (k, n) = args.shard.map_or((0, 1), |s| (s.k - 1, s.n));
-    let (rows, counts) = with_threads(args.threads, || solve_part(&plan, k, n))??;
-    let io = |e: std::io::Error| UsageError(format!("cannot write '{}': {e}", path.display()));
-    if let Some(shard) = args.shard {
-        file.write_all(part_head(&plan, shard).as_bytes())
-            .map_err(io)?;
-    }
-    file.write_all(plan.header().as_bytes()).map_err(io)?;
-    for r in &rows {
-        file.write_all(r.as_bytes()).map_err(io)?;
-    }
-    if let Some(shard) = args.shard {
-        file.write_all(part_end(shard, rows.len()).as_bytes())
-            .map_err(io)?;
-    }
-    file.commit()?;
-    let what = match args.shard {
-        Some(s) => format!(
-            "part {}/{} ({} of {} members)",
-            s.k,
-            s.n,
-            rows.len(),
-            plan.members
+    let t_end = plan.t_end;
+    let outcome = with_threads(threads, || match plan.problem {
+        ProblemArg::Duffing => execute(
+            &plan,
+            |_: &(), i| duffing_member(&plan.parameters(i), t_end),
+            &mode,
+            &reporter,
         ),
-        None => format!("{} members", plan.members),
+        ProblemArg::HenonHeiles => execute(
+            &plan,
+            |_: &(), i| henon_heiles_member(&plan.parameters(i), plan.energy, t_end),
+            &mode,
+            &reporter,
+        ),
+    })??;
+    reporter.finish();
+    let r = &outcome.report;
+    if rank > 0 {
+        return Ok(());
+    }
+    if let (Some(npy), true) = (&args.npy, r.complete) {
+        table_to_npy(path, npy).map_err(|e| UsageError(e.to_string()))?;
+    }
+    let what = match (&mode, args.shard) {
+        (Mode::Summary { .. }, _) => format!("summary of {} members", plan.members),
+        (_, Some(s)) => format!(
+            "part {}/{} ({} of {} members)",
+            s.k, s.n, r.members, plan.members
+        ),
+        _ if ranks > 1 => format!("{} members on {ranks} MPI ranks", plan.members),
+        _ => format!("{} members", plan.members),
     };
+    let kept = if r.kept > 0 {
+        format!(
+            " ({} rows kept from the unfinished run, {} solved now)",
+            r.kept, r.written
+        )
+    } else {
+        String::new()
+    };
+    let fixed = plan.fixed();
     writeln!(
         out,
-        "wrote {}: {what}: {}; {:.2} s",
+        "wrote {}: {what}{kept}: {} {}, {} unverified, {} failed; {:.2} s",
         path.display(),
-        counts.describe(plan.fixed()),
+        r.verified,
+        if fixed { "ok" } else { "verified" },
+        r.unverified,
+        r.failed,
         start.elapsed().as_secs_f64()
     )
-    .map_err(|e| UsageError(format!("cannot write output: {e}")))
+    .map_err(|e| UsageError(format!("cannot write output: {e}")))?;
+    if r.unverified + r.failed > 0 {
+        super::set_exit_status(FAILED_MEMBERS_STATUS);
+    }
+    Ok(())
 }
 
-/// A part file read and checked.
-struct Part {
-    path: PathBuf,
-    shard: Shard,
-    members: usize,
-    description: String,
-    header: String,
-    /// Its rows, each with its line break.
-    rows: Vec<String>,
-}
-
-fn read_part(path: &Path) -> Result<Part, UsageError> {
-    let shown = path.display();
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| UsageError(format!("cannot read part '{shown}': {e}")))?;
-    let not_a_part = || {
-        UsageError(format!(
-            "'{shown}' is not a part written by 'ecr ensemble --shard K/N'"
-        ))
-    };
-    let mut lines: Vec<&str> = text.split_inclusive('\n').collect();
-    let first = lines.first().copied().ok_or_else(not_a_part)?;
-    let head = first
-        .strip_prefix("# ecr ensemble part ")
-        .and_then(|h| h.strip_suffix('\n'))
-        .ok_or_else(not_a_part)?;
-    let (kn, rest) = head.split_once(" of ").ok_or_else(not_a_part)?;
-    let (members, description) = rest.split_once(" members: ").ok_or_else(not_a_part)?;
-    let shard = parse_shard(kn).map_err(|_| not_a_part())?;
-    let members: usize = members.parse().map_err(|_| not_a_part())?;
-    let end = part_end(shard, part_len(members, shard.k - 1, shard.n));
-    let unfinished = || {
-        UsageError(format!(
-            "part '{shown}' ({}/{}) does not end with '{}': its shard was killed or has not \
-             finished; run it again",
-            shard.k,
-            shard.n,
-            end.trim_end()
-        ))
-    };
-    if lines.len() < 3 || lines.last() != Some(&end.as_str()) {
-        return Err(unfinished());
-    }
-    lines.pop();
-    let header = lines[1].to_string();
-    let rows: Vec<String> = lines[2..].iter().map(|l| l.to_string()).collect();
-    let expected = part_len(members, shard.k - 1, shard.n);
-    if rows.len() != expected {
-        return Err(UsageError(format!(
-            "part '{shown}' ({}/{}) has {} rows instead of {expected}: the file was changed \
-             after its shard wrote it",
-            shard.k,
-            shard.n,
-            rows.len()
-        )));
-    }
-    for (j, r) in rows.iter().enumerate() {
-        let expect = shard.k - 1 + j * shard.n;
-        let index = r.split(',').next().and_then(|f| f.parse::<usize>().ok());
-        if index != Some(expect) || !r.ends_with('\n') {
-            return Err(UsageError(format!(
-                "part '{shown}' ({}/{}): row {} should be member {expect}: the file was \
-                 changed after its shard wrote it",
-                shard.k,
-                shard.n,
-                j + 1
-            )));
-        }
-    }
-    Ok(Part {
-        path: path.to_path_buf(),
-        shard,
-        members,
-        description: description.to_string(),
-        header,
-        rows,
-    })
-}
+/// The exit status of a run whose table (or summary) is written but where some members have
+/// no verified answer.
+pub const FAILED_MEMBERS_STATUS: u8 = 3;
 
 fn merge(args: &MergeArgs, out: &mut dyn Write) -> Result<(), UsageError> {
-    let mut parts = args
-        .parts
-        .iter()
-        .map(|p| read_part(p))
-        .collect::<Result<Vec<_>, _>>()?;
-    let first = &parts[0];
-    for p in &parts[1..] {
-        let same = p.shard.n == first.shard.n
-            && p.members == first.members
-            && p.description == first.description
-            && p.header == first.header;
-        if !same {
-            return Err(UsageError(format!(
-                "'{}' and '{}' are parts of different ensembles ({}/{} of {} members: {}; \
-                 {}/{} of {} members: {})",
-                first.path.display(),
-                p.path.display(),
-                first.shard.k,
-                first.shard.n,
-                first.members,
-                first.description,
-                p.shard.k,
-                p.shard.n,
-                p.members,
-                p.description
-            )));
-        }
+    let report = merge_parts(&args.parts, &args.out).map_err(|e| UsageError(e.to_string()))?;
+    if let Some(npy) = &args.npy {
+        table_to_npy(&args.out, npy).map_err(|e| UsageError(e.to_string()))?;
     }
-    let n = first.shard.n;
-    parts.sort_by_key(|p| p.shard.k);
-    for w in parts.windows(2) {
-        if w[0].shard.k == w[1].shard.k {
-            return Err(UsageError(format!(
-                "part {}/{n} is given twice ('{}', '{}')",
-                w[0].shard.k,
-                w[0].path.display(),
-                w[1].path.display()
-            )));
-        }
-    }
-    let missing: Vec<String> = (1..=n)
-        .filter(|k| parts.iter().all(|p| p.shard.k != *k))
-        .map(|k| k.to_string())
-        .collect();
-    if !missing.is_empty() {
-        return Err(UsageError(format!(
-            "{} of {n} parts missing: {} (each part is one 'ecr ensemble --shard K/{n}' run)",
-            missing.len(),
-            missing.join(", ")
-        )));
-    }
-    let mut file = OutputFile::stage(&args.out)?;
-    let io = |e: std::io::Error| UsageError(format!("cannot write '{}': {e}", args.out.display()));
-    file.write_all(parts[0].header.as_bytes()).map_err(io)?;
-    let members = parts[0].members;
-    for i in 0..members {
-        file.write_all(parts[i % n].rows[i / n].as_bytes())
-            .map_err(io)?;
-    }
-    file.commit()?;
     writeln!(
         out,
-        "wrote {}: {members} members from {n} parts",
-        args.out.display()
+        "wrote {}: {} members from {} parts",
+        args.out.display(),
+        report.members,
+        report.parts
     )
     .map_err(|e| UsageError(format!("cannot write output: {e}")))
 }
@@ -915,24 +1010,20 @@ mod tests {
             "q2=0:1:0",
             "q2=0:1:1",
             "q2=0:inf:3",
+            "q2=0:1:18446744073709551616",
         ] {
             assert!(parse_vary(bad).is_err(), "{bad}");
         }
-        let grid = parse_vary("p2=-0.4:0.4:5").unwrap().values();
+        let v = parse_vary("p2=-0.4:0.4:5").unwrap();
+        let grid: Vec<f64> = (0..5).map(|j| v.value(j)).collect();
         assert_eq!(grid, [-0.4, -0.2, 0.0, -0.4 + 0.8 * 0.75, 0.4]);
-        assert_eq!(parse_vary("k=1e-3:1e-3:1").unwrap().values(), [1e-3]);
+        assert_eq!(grid, ecr_runtime::solve::linspace(-0.4, 0.4, 5));
+        assert_eq!(parse_vary("k=1e-3:1e-3:1").unwrap().value(0), 1e-3);
         assert_eq!(parse_shard("2/3").unwrap(), Shard { k: 2, n: 3 });
-        for bad in ["0/3", "4/3", "1/0", "1", "a/b"] {
-            assert!(parse_shard(bad).is_err(), "{bad}");
+        for bad in ["0/3", "4/3", "1/0", "1", "a/b", "-1/3"] {
+            let e = parse_shard(bad).unwrap_err();
+            assert!(e.starts_with(&format!("--shard {bad}: ")), "{e}");
         }
-    }
-
-    #[test]
-    fn fields_with_commas_quotes_or_line_breaks_stay_in_one_field_on_one_line() {
-        assert_eq!(csv_field("plain text"), "plain text");
-        assert_eq!(csv_field("a, b"), "\"a, b\"");
-        assert_eq!(csv_field("say \"x\""), "\"say \"\"x\"\"\"");
-        assert_eq!(csv_field("two\nlines"), "two lines");
     }
 
     #[test]
@@ -951,6 +1042,12 @@ mod tests {
             out: None,
             threads: None,
             shard: None,
+            resume: false,
+            summary: false,
+            quantiles: Vec::new(),
+            quiet: false,
+            cpu_seconds: false,
+            npy: None,
         };
         let plan = Plan::new(&args).unwrap();
         assert_eq!(plan.members, 6);

@@ -58,6 +58,15 @@ enum Command {
 #[derive(Debug)]
 pub struct UsageError(pub String);
 
+/// The exit status of a command that succeeded but has something to tell a script (`ecr
+/// ensemble`: 3 when some members are not verified); 0 otherwise.
+static EXIT_STATUS: std::sync::atomic::AtomicU8 = std::sync::atomic::AtomicU8::new(0);
+
+/// Sets the exit status of a command that completes (see [`EXIT_STATUS`]).
+fn set_exit_status(status: u8) {
+    EXIT_STATUS.store(status, Ordering::Relaxed);
+}
+
 /// Collapses clap's multi-line report into one line.
 fn one_line(e: &clap::Error) -> String {
     e.render()
@@ -161,7 +170,8 @@ const BROKEN_PIPE_STATUS: u8 = 141;
 
 /// Entry point of the binary.
 ///
-/// Exit status: 0 on success; 2 with one line on stderr for bad input or a failed command;
+/// Exit status: 0 on success (`ecr ensemble`: 3 when some members are not verified); 2 with
+/// one line on stderr for bad input or a failed command;
 /// 1 with one line on stderr if standard output cannot be written (e.g. `> /dev/full`; the
 /// command's files, if it writes any, are complete, and the line says so) or was closed when
 /// the command started (`>&-`; then before any work); 141, silently, if the reader of a pipe
@@ -194,7 +204,7 @@ pub fn main() -> ExitCode {
             report(&format!("cannot write output: {e}"));
             ExitCode::from(1)
         }
-        (None, Ok(())) => ExitCode::SUCCESS,
+        (None, Ok(())) => ExitCode::from(EXIT_STATUS.load(Ordering::Relaxed)),
         (None, Err(UsageError(msg))) => {
             report(&msg);
             ExitCode::from(2)

@@ -1,5 +1,5 @@
 //! `ecr ensemble`: the table of one run, the same with 1 and 2 threads and from shards joined
-//! by `ecr ensemble merge` (byte for byte, the CPU column aside); failed members as rows;
+//! by `ecr ensemble merge` (byte for byte, and as NPY); failed members as rows;
 //! merges of parts that are missing, twice, of another ensemble, cut short or of a killed
 //! shard refused in one line.
 
@@ -31,20 +31,6 @@ fn run(extra: &[&str]) -> (i32, String, String) {
     ecr(&args)
 }
 
-/// The text without its last column (the CPU seconds) on the table's lines.
-fn without_cpu(text: &str) -> String {
-    text.lines()
-        .map(|l| {
-            if l.starts_with('#') {
-                l
-            } else {
-                &l[..l.rfind(',').expect("a column")]
-            }
-        })
-        .collect::<Vec<_>>()
-        .join("\n")
-}
-
 fn read(path: &Path) -> String {
     std::fs::read_to_string(path).unwrap()
 }
@@ -69,7 +55,7 @@ fn threads_and_shards_merged_give_the_table_of_one_run() {
     std::fs::create_dir_all(&dir.0).unwrap();
     let one = path(&dir, "one.csv");
     let (code, out, err) = run(&["--threads", "1", "--out", &one]);
-    assert_eq!(code, 0, "{err}");
+    assert_eq!(code, 3, "{err}"); // four members fail: status 3
     assert!(out.contains("20 members"), "{out}");
     let table = read(Path::new(&one));
     let lines: Vec<&str> = table.lines().collect();
@@ -77,7 +63,7 @@ fn threads_and_shards_merged_give_the_table_of_one_run() {
     assert_eq!(
         lines[0],
         "member,q2,p2,status,t,q1_end,q2_end,p1_end,p2_end,error_estimate,energy_error,\
-         g_evals,message,cpu_seconds"
+         g_evals,message"
     );
     assert!(
         lines[1].starts_with("0,-0.3,-0.4,failed,,,,,,,,,"),
@@ -95,8 +81,14 @@ fn threads_and_shards_merged_give_the_table_of_one_run() {
     assert_eq!(verified, 16, "{table}");
 
     let two = path(&dir, "two.csv");
-    assert_eq!(run(&["--threads", "2", "--out", &two]).0, 0);
-    assert_eq!(without_cpu(&read(Path::new(&two))), without_cpu(&table));
+    let two_npy = path(&dir, "two.npy");
+    assert_eq!(
+        run(&["--threads", "2", "--npy", &two_npy, "--out", &two]).0,
+        3
+    );
+    assert_eq!(read(Path::new(&two)), table);
+    let npy = std::fs::read(&two_npy).unwrap();
+    assert!(npy.starts_with(b"\x93NUMPY"), "{npy:?}");
 
     let parts: Vec<String> = (1..=3)
         .map(|k| path(&dir, &format!("part{k}.csv")))
@@ -104,21 +96,41 @@ fn threads_and_shards_merged_give_the_table_of_one_run() {
     for (k, part) in parts.iter().enumerate() {
         let shard = format!("{}/3", k + 1);
         let (code, _, err) = run(&["--shard", &shard, "--out", part]);
-        assert_eq!(code, 0, "{err}");
+        assert!(code == 0 || code == 3, "{err}");
     }
     let part1 = read(Path::new(&parts[0]));
     assert!(
         part1.starts_with("# ecr ensemble part 1/3 of 20 members: "),
         "{part1}"
     );
-    assert!(part1.ends_with("# end of part 1/3: 7 rows\n"), "{part1}");
+    let end = part1.lines().last().unwrap();
+    let digest = end
+        .strip_prefix("# end of part 1/3: 7 rows, sha256 ")
+        .unwrap_or_else(|| panic!("{part1}"));
+    assert!(
+        digest.len() == 64 && digest.bytes().all(|b| b.is_ascii_hexdigit()),
+        "{end}"
+    );
     let merged = path(&dir, "merged.csv");
+    let merged_npy = path(&dir, "merged.npy");
     let (code, out, err) = ecr(&[
-        "ensemble", "merge", "--out", &merged, &parts[2], &parts[0], &parts[1],
+        "ensemble",
+        "merge",
+        "--out",
+        &merged,
+        "--npy",
+        &merged_npy,
+        &parts[2],
+        &parts[0],
+        &parts[1],
     ]);
     assert_eq!(code, 0, "{err}");
     assert!(out.contains("20 members from 3 parts"), "{out}");
-    assert_eq!(without_cpu(&read(Path::new(&merged))), without_cpu(&table));
+    assert_eq!(read(Path::new(&merged)), table);
+    assert!(
+        std::fs::read(&merged_npy).unwrap() == npy,
+        "the NPY of the merge differs"
+    );
 }
 
 #[test]
@@ -130,7 +142,7 @@ fn merges_of_incomplete_or_mixed_parts_are_refused() {
         .collect();
     for (k, part) in parts.iter().enumerate() {
         let shard = format!("{}/3", k + 1);
-        assert_eq!(run(&["--shard", &shard, "--out", part]).0, 0);
+        assert!([0, 3].contains(&run(&["--shard", &shard, "--out", part]).0));
     }
     let merged = path(&dir, "merged.csv");
     let merge = |parts: &[&str]| {
@@ -147,7 +159,7 @@ fn merges_of_incomplete_or_mixed_parts_are_refused() {
     let t = args.iter().position(|a| *a == "--t-end").unwrap();
     args[t + 1] = "6";
     args.extend(["--shard", "2/3", "--out", &other]);
-    assert_eq!(ecr(&args).0, 0);
+    assert_eq!(ecr(&args).0, 3);
     assert_refused(
         merge(&[&parts[0], &other, &parts[2]]),
         "parts of different ensembles",
@@ -174,7 +186,7 @@ fn merges_of_incomplete_or_mixed_parts_are_refused() {
     );
     // Not a part at all: a whole table.
     let whole = path(&dir, "whole.csv");
-    assert_eq!(run(&["--out", &whole]).0, 0);
+    assert_eq!(run(&["--out", &whole]).0, 3);
     assert_refused(merge(&[&whole]), "is not a part");
     assert!(
         !Path::new(&merged).exists(),
@@ -201,11 +213,12 @@ fn a_killed_shard_leaves_no_table() {
         .map(|e| e.unwrap().file_name().into_string().unwrap())
         .collect();
     assert!(
-        left.iter().all(|f| f.starts_with(".part2.csv.ecr-new-")),
+        left.iter()
+            .all(|f| f.starts_with(".part2.csv.ecr-partial-")),
         "{left:?}"
     );
     let (p1, p3) = (path(&dir, "part1.csv"), path(&dir, "part3.csv"));
-    assert_eq!(run(&["--shard", "1/3", "--out", &p1]).0, 0);
+    assert_eq!(run(&["--shard", "1/3", "--out", &p1]).0, 3);
     assert_eq!(run(&["--shard", "3/3", "--out", &p3]).0, 0);
     let merged = path(&dir, "merged.csv");
     assert_refused(
@@ -213,7 +226,7 @@ fn a_killed_shard_leaves_no_table() {
         "parts missing: 2",
     );
     // The next run with the same --out removes the staging file of the killed one.
-    assert_eq!(run(&["--shard", "2/3", "--out", &part]).0, 0);
+    assert_eq!(run(&["--shard", "2/3", "--out", &part]).0, 3);
     let mut left: Vec<String> = std::fs::read_dir(&dir.0)
         .unwrap()
         .map(|e| e.unwrap().file_name().into_string().unwrap())
@@ -241,6 +254,7 @@ fn a_fixed_step_run_and_bad_input() {
         "0.01",
         "--t-end",
         "1",
+        "--cpu-seconds",
         "--out",
         &out,
     ]);
@@ -342,4 +356,294 @@ fn a_fixed_step_run_and_bad_input() {
     );
     // The refused runs left the table as it was.
     assert_eq!(read(Path::new(&out)), table);
+}
+
+/// Issue 52, item 5: counts whose table cannot be written (or counted) are one line and exit
+/// status 2 at once, before anything large is allocated (they panicked, aborted, or took
+/// 7.8 GB before refusing).
+#[test]
+fn huge_counts_are_refused_in_one_line() {
+    let dir = TempDir::new("ensemble-huge");
+    std::fs::create_dir_all(&dir.0).unwrap();
+    let out = path(&dir, "a.csv");
+    for count in ["18446744073709551615", "3000000000", "1000000000"] {
+        let vary = format!("q0=0:1:{count}");
+        let args = [
+            "ensemble",
+            "--problem",
+            "duffing",
+            "--tol",
+            "1e-6",
+            "--t-end",
+            "1",
+            "--vary",
+            &vary,
+            "--out",
+            &out,
+        ];
+        assert_refused(ecr(&args), "members");
+    }
+    assert!(!Path::new(&out).exists());
+}
+
+/// Issue 52, item 6: a run where members fail exits with a status that says so (3), the
+/// table written all the same.
+#[test]
+fn failed_members_give_a_nonzero_status() {
+    let dir = TempDir::new("ensemble-status");
+    std::fs::create_dir_all(&dir.0).unwrap();
+    let out = path(&dir, "a.csv");
+    let (code, stdout, err) = ecr(&[
+        "ensemble",
+        "--problem",
+        "duffing",
+        "--tol",
+        "1e-20",
+        "--t-end",
+        "1",
+        "--vary",
+        "q0=0:0.1:2",
+        "--out",
+        &out,
+    ]);
+    assert_eq!(code, 3, "{stdout}{err}");
+    assert!(stdout.contains("0 verified"), "{stdout}");
+    assert_eq!(read(Path::new(&out)).lines().count(), 3);
+}
+
+/// Issue 52, item 8: absurd thread counts and negative shards are one readable line.
+#[test]
+fn absurd_threads_and_negative_shards_are_refused_in_one_line() {
+    let dir = TempDir::new("ensemble-threads");
+    std::fs::create_dir_all(&dir.0).unwrap();
+    let out = path(&dir, "a.csv");
+    let base = [
+        "ensemble",
+        "--problem",
+        "duffing",
+        "--tol",
+        "1e-6",
+        "--t-end",
+        "1",
+        "--vary",
+        "q0=0:0.1:2",
+        "--out",
+        &out,
+    ];
+    let mut args = base.to_vec();
+    args.extend(["--threads", "5000"]);
+    assert_refused(ecr(&args), "--threads 5000");
+    let mut args = base.to_vec();
+    args.extend(["--shard", "-1/3"]);
+    assert_refused(ecr(&args), "--shard -1/3");
+}
+
+/// Issue 52, item 8: a part with an edited row (same member, same count, same end line) is
+/// refused by the merge: the end line carries a digest of the rows.
+#[test]
+fn a_part_with_an_edited_row_is_refused() {
+    let dir = TempDir::new("ensemble-digest");
+    std::fs::create_dir_all(&dir.0).unwrap();
+    let parts: Vec<String> = (1..=2)
+        .map(|k| path(&dir, &format!("part{k}.csv")))
+        .collect();
+    for (k, part) in parts.iter().enumerate() {
+        let shard = format!("{}/2", k + 1);
+        let (code, _, err) = run(&["--shard", &shard, "--out", part]);
+        assert!(code == 0 || code == 3, "{err}");
+    }
+    let text = read(Path::new(&parts[1]));
+    let edited = text.replacen(",verified,5.0,", ",verified,5.0000001,", 1);
+    assert_ne!(edited, text);
+    std::fs::write(&parts[1], edited).unwrap();
+    let merged = path(&dir, "merged.csv");
+    assert_refused(
+        ecr(&["ensemble", "merge", "--out", &merged, &parts[0], &parts[1]]),
+        "digest",
+    );
+    assert!(!Path::new(&merged).exists());
+}
+
+/// A run killed by SIGKILL at random moments (several times, on one and on two threads) and
+/// resumed each time writes, once it completes, the table of an uninterrupted run byte for
+/// byte; a killed run never leaves a table at --out; the unfinished
+/// file it leaves holds whole rows only, which the next --resume keeps.
+#[test]
+fn runs_killed_at_random_moments_and_resumed_write_the_table_of_one_run() {
+    use common::{Moment, Rng};
+    let dir = TempDir::new("ensemble-resume");
+    std::fs::create_dir_all(&dir.0).unwrap();
+    let grid = [
+        "ensemble",
+        "--problem",
+        "henon-heiles",
+        "--vary",
+        "q2=-0.3:0.3:30",
+        "--vary",
+        "p2=-0.3:0.3:30",
+        "--energy",
+        "0.125",
+        "--tol",
+        "1e-8",
+        "--t-end",
+        "40",
+    ];
+    let one = path(&dir, "one.csv");
+    let mut args = grid.to_vec();
+    args.extend(["--threads", "1", "--quiet", "--out", &one]);
+    let start = std::time::Instant::now();
+    let (code, _, err) = ecr(&args);
+    assert_eq!(code, 0, "{err}");
+    let duration = start.elapsed().as_secs_f64();
+    let table = read(Path::new(&one));
+    assert_eq!(table.lines().count(), 901);
+    let mut rng = Rng::new(52);
+    for (threads, kills) in [("1", 4), ("2", 3)] {
+        let out = path(&dir, &format!("resumed{threads}.csv"));
+        let mut args = grid.to_vec();
+        args.extend(["--threads", threads, "--quiet", "--resume", "--out", &out]);
+        let mut killed = 0;
+        let mut rows_before = 0;
+        let mut completed = false;
+        for _ in 0..kills {
+            // Early enough in what is left that two of the runs are killed: each resumed
+            // run has less to do, and two threads take about half the time of one.
+            let per_thread = duration / threads.parse::<f64>().unwrap();
+            let moment = Moment::After(per_thread * (0.2 + 0.25 * rng.unit()));
+            let (status, _) = common::run_and_signal(&args, &dir.0, moment, "KILL");
+            if status.success() {
+                // A resumed run finished before its kill: the table is complete.
+                completed = true;
+                break;
+            }
+            killed += 1;
+            assert!(!Path::new(&out).exists(), "a killed run left {out}");
+            // Whole rows of the members in order, more than the previous kill left.
+            let partial = std::fs::read_dir(&dir.0)
+                .unwrap()
+                .map(|e| e.unwrap().path())
+                .find(|p| {
+                    p.file_name()
+                        .unwrap()
+                        .to_str()
+                        .unwrap()
+                        .starts_with(&format!(".resumed{threads}.csv.ecr-partial-"))
+                })
+                .expect("an unfinished file");
+            let text = String::from_utf8(std::fs::read(&partial).unwrap()).unwrap();
+            let rows = text.lines().count().saturating_sub(1);
+            assert!(rows >= rows_before, "{rows} rows after {rows_before}");
+            rows_before = rows;
+        }
+        assert!(
+            killed >= 2,
+            "{threads} threads: only {killed} runs were killed"
+        );
+        assert!(
+            rows_before > 0,
+            "{threads} threads: the killed runs kept no row"
+        );
+        if !completed {
+            let (code, stdout, err) = ecr(&args);
+            assert_eq!(code, 0, "{err}");
+            assert!(
+                stdout.contains("rows kept from the unfinished run"),
+                "{stdout}"
+            );
+        }
+        assert_eq!(read(Path::new(&out)), table, "{threads} threads");
+    }
+    // Nothing is left beside the tables.
+    let mut left: Vec<String> = std::fs::read_dir(&dir.0)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    left.sort();
+    assert_eq!(left, ["one.csv", "resumed1.csv", "resumed2.csv"]);
+}
+
+/// `--summary` writes per output column the count, mean, variance, extremes and quantiles
+/// over the verified members (memory independent of the members), the same with 1 and 2
+/// threads; progress lines appear on a non-terminal stderr, and not with --quiet.
+#[test]
+fn a_summary_and_progress_lines() {
+    let dir = TempDir::new("ensemble-summary");
+    std::fs::create_dir_all(&dir.0).unwrap();
+    let out = path(&dir, "summary.csv");
+    let table = path(&dir, "table.csv");
+    let mut summaries = Vec::new();
+    for threads in ["1", "2"] {
+        let out = path(&dir, &format!("summary{threads}.csv"));
+        let output = std::process::Command::new(env!("CARGO_BIN_EXE_ecr"))
+            .args(GRID)
+            .args([
+                "--summary",
+                "--quantiles",
+                "0,0.5,1",
+                "--threads",
+                threads,
+                "--out",
+                &out,
+            ])
+            .env("ECR_PROGRESS_SECONDS", "0")
+            .output()
+            .unwrap();
+        let (stdout, stderr) = (
+            String::from_utf8_lossy(&output.stdout),
+            String::from_utf8_lossy(&output.stderr),
+        );
+        assert_eq!(output.status.code(), Some(3), "{stdout}{stderr}");
+        assert!(
+            stdout.contains("summary of 20 members: 16 verified"),
+            "{stdout}"
+        );
+        assert!(
+            stderr.contains("ecr ensemble: 20 of 20 members (100.0 %)"),
+            "{stderr}"
+        );
+        summaries.push(read(Path::new(&out)));
+    }
+    assert_eq!(summaries[0], summaries[1]);
+    let lines: Vec<&str> = summaries[0].lines().collect();
+    assert_eq!(
+        lines[0],
+        "output,count,non_finite,mean,variance,min,max,q0.0,q0.5,q1.0"
+    );
+    // The q1_end row against the table's column: count, min = q0, max = q1.
+    let (code, _, _) = run(&["--quiet", "--out", &table]);
+    assert_eq!(code, 3);
+    let rows = read(Path::new(&table));
+    let q1: Vec<f64> = rows
+        .lines()
+        .skip(1)
+        .filter(|l| l.contains(",verified,"))
+        .map(|l| l.split(',').nth(5).unwrap().parse().unwrap())
+        .collect();
+    let row: Vec<&str> = lines
+        .iter()
+        .find(|l| l.starts_with("q1_end,"))
+        .unwrap()
+        .split(',')
+        .collect();
+    assert_eq!(row[1], "16");
+    let min = q1.iter().copied().fold(f64::INFINITY, f64::min);
+    let max = q1.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    assert_eq!(row[5].parse::<f64>().unwrap(), min);
+    assert_eq!(row[6].parse::<f64>().unwrap(), max);
+    assert_eq!(row[7].parse::<f64>().unwrap(), min);
+    assert_eq!(row[9].parse::<f64>().unwrap(), max);
+    let mean = q1.iter().sum::<f64>() / q1.len() as f64;
+    assert!((row[3].parse::<f64>().unwrap() - mean).abs() <= 1e-13 * mean.abs().max(1.0));
+    // --quiet: no progress lines.
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_ecr"))
+        .args(GRID)
+        .args(["--quiet", "--out", &out])
+        .env("ECR_PROGRESS_SECONDS", "0")
+        .output()
+        .unwrap();
+    assert!(
+        output.stderr.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
 }

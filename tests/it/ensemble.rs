@@ -204,3 +204,294 @@ fn progress_sees_every_member_and_can_stop_the_work() {
         .count();
     assert_eq!(not_run, 35);
 }
+
+/// Counts that no vector of results can hold are refused with `Err` before the results are
+/// allocated, even when the progress callback would stop the work after two members (issue
+/// 52: `usize::MAX` panicked with "capacity overflow" and 2·10⁹ aborted on 128 GB).
+#[test]
+fn huge_member_counts_are_refused_before_the_results_are_allocated() {
+    let system = HenonHeiles::default().system().unwrap();
+    let options = Options::fixed(2, 0.05);
+    for n in [usize::MAX, 2_000_000_000] {
+        let made = AtomicUsize::new(0);
+        let ensemble = Ensemble::new((), n, |_: &(), i| {
+            made.fetch_add(1, Ordering::Relaxed);
+            Problem::new(&system, [0.0, 1e-3 * (i % 7) as f64, 0.4, 0.0], (0.0, 0.1))
+        });
+        let stop = Control::new().progress(|p| {
+            if p.done >= 2 {
+                ControlFlow::Break(())
+            } else {
+                ControlFlow::Continue(())
+            }
+        });
+        let e = ensemble.solve_with(&options, &stop, |_, _| 0.0_f64);
+        assert!(
+            matches!(&e, Err(ecr::runtime::Error::InvalidInput(m)) if m.contains("members")),
+            "{n} members: {:?}",
+            e.map(|r| r.members.len())
+        );
+        assert_eq!(made.load(Ordering::Relaxed), 0, "{n} members");
+    }
+}
+
+/// A dense linear operator shared by every member (d = 8: four coupled oscillators, the
+/// members differing in y₀): shared φ-banks give the same bits as each member building its
+/// own, on one thread and on two.
+#[test]
+fn shared_banks_give_the_same_bits() {
+    use ecr::runtime::nalgebra::DMatrix;
+    use ecr::runtime::operator::Dense;
+    let d = 8;
+    let mut a = DMatrix::zeros(d, d);
+    for i in 0..d / 2 {
+        a[(i, d / 2 + i)] = 1.0;
+        a[(d / 2 + i, i)] = -(1.0 + i as f64);
+        if i + 1 < d / 2 {
+            a[(d / 2 + i, i + 1)] = 0.1;
+            a[(d / 2 + i + 1, i)] = 0.1;
+        }
+    }
+    let system = Semilinear::new(Dense::new(a).unwrap(), |y: &[f64], g: &mut [f64]| {
+        g.fill(0.0);
+        for i in 0..4 {
+            g[4 + i] = -y[i].powi(3);
+        }
+    });
+    let make = |_: &(), i: usize| {
+        let mut y0 = vec![0.0; 8];
+        y0[i % 4] = 0.1 + 0.01 * i as f64;
+        Problem::new(&system, y0, (0.0, 2.0))
+    };
+    for options in [
+        Options::fixed(3, 0.1).t_eval([1.0, 2.0]),
+        Options::tolerance(1e-8).t_eval([1.0, 2.0]),
+    ] {
+        let own = Ensemble::new((), 16, make)
+            .solve(&options, |_, s| bits(s))
+            .unwrap();
+        assert_eq!(own.verified(), 16);
+        for threads in [1, 2] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let ensemble = Ensemble::new((), 16, make).share_banks();
+            assert!(ensemble.shares_banks());
+            let shared = pool
+                .install(|| ensemble.solve(&options, |_, s| bits(s)))
+                .unwrap();
+            assert_eq!(outcomes(&shared), outcomes(&own), "{threads} threads");
+        }
+    }
+}
+
+/// `solve_in_order` hands the members on in member order (of a part, from `start_at`), and
+/// its memory does not depend on the number of members: 2·10⁹ members with a callback that
+/// stops after a few are streamed without any allocation of that size.
+#[test]
+fn streams_come_in_member_order_and_stop() {
+    let system = HenonHeiles::default().system().unwrap();
+    let options = Options::fixed(2, 0.05).t_eval([0.1]);
+    let make = |_: &(), i: usize| {
+        Problem::new(&system, [0.0, 1e-3 * (i % 7) as f64, 0.4, 0.0], (0.0, 0.1))
+    };
+    let ensemble = Ensemble::new((), 50, make);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .unwrap();
+    let mut seen = Vec::new();
+    let control = Control::new().part(1, 3).start_at(20);
+    let streamed = pool
+        .install(|| {
+            ensemble.solve_in_order(
+                &options,
+                &control,
+                |i, _| i,
+                |m| {
+                    assert_eq!(*m.outcome.as_ref().unwrap(), m.index);
+                    seen.push(m.index);
+                    Ok(())
+                },
+            )
+        })
+        .unwrap();
+    assert_eq!(seen, (22..50).step_by(3).collect::<Vec<_>>());
+    assert_eq!((streamed.delivered, streamed.skipped), (10, 7));
+    assert!(!streamed.stopped);
+
+    let huge = Ensemble::new((), 2_000_000_000, make);
+    let stop = Control::new().progress(|p| {
+        if p.done >= 3 {
+            ControlFlow::Break(())
+        } else {
+            ControlFlow::Continue(())
+        }
+    });
+    // One thread: the members finish in member order, so that the stop comes after the
+    // third (with more, the third to finish may be one of another thread's range, and the
+    // stream ends at the first member not run).
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let mut n = 0;
+    let streamed = one
+        .install(|| {
+            huge.solve_in_order(
+                &options,
+                &stop,
+                |_, _| (),
+                |m| {
+                    assert_eq!(m.index, n);
+                    n += 1;
+                    Ok(())
+                },
+            )
+        })
+        .unwrap();
+    assert!(streamed.stopped);
+    assert_eq!(n, 3, "{n} members delivered");
+}
+
+/// `write_table` stopped part-way (a progress callback that breaks) leaves no table but an
+/// unfinished one; `Control::resume` keeps its rows and solves the rest: the table equals
+/// an uninterrupted run's byte for byte, for a whole table and a part.
+#[test]
+fn tables_stopped_and_resumed_equal_uninterrupted_ones() {
+    use ecr::runtime::ensemble::{Cell, Column, Table};
+    let system = HenonHeiles::default().system().unwrap();
+    let options = Options::tolerance(1e-7).t_eval([2.0]);
+    let make =
+        |_: &(), i: usize| Problem::new(&system, [0.0, 5e-4 * i as f64, 0.4, 0.0], (0.0, 2.0));
+    let ensemble = Ensemble::new((), 700, make).share_banks();
+    // Outputs of members without a state (none here) would be NaN, not a panic.
+    let output = |_: usize, s: &Solution| {
+        vec![
+            Cell::F64(s.last().map_or(f64::NAN, |y| y[1])),
+            s.error_estimate.into(),
+        ]
+    };
+    let dir = std::env::temp_dir().join(format!("ecr-table-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let read = |p: &std::path::Path| std::fs::read(p).unwrap();
+    for part in [None, Some((1, 2))] {
+        let table = || {
+            let t = Table::new(
+                "q2 from 5e-4 i",
+                vec![Column::f64("q2"), Column::f64("est")],
+            )
+            .inputs(vec![Column::f64("q2_0")], |i, cells| {
+                cells.push(Cell::F64(5e-4 * i as f64))
+            });
+            if part.is_some() { t.as_part() } else { t }
+        };
+        let with_part = |c: Control<'static>| match part {
+            Some((k, n)) => c.part(k, n),
+            None => c,
+        };
+        let whole = dir.join("whole.csv");
+        let report = ensemble
+            .write_table(
+                &options,
+                &with_part(Control::new()),
+                &table(),
+                output,
+                &whole,
+            )
+            .unwrap();
+        assert!(report.complete && report.kept == 0);
+        let out = dir.join("resumed.csv");
+        let mut kept = Vec::new();
+        let mut complete = false;
+        for stop_after in [100, 300, 600] {
+            let stop = with_part(Control::new().resume()).progress(move |p| {
+                if p.done >= stop_after {
+                    ControlFlow::Break(())
+                } else {
+                    ControlFlow::Continue(())
+                }
+            });
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(1)
+                .build()
+                .unwrap();
+            let r = pool
+                .install(|| ensemble.write_table(&options, &stop, &table(), output, &out))
+                .unwrap();
+            kept.push(r.kept + r.written);
+            if r.complete {
+                // The part's 350 members: the third run finishes it.
+                assert!(r.kept > 0, "{r:?}");
+                complete = true;
+                break;
+            }
+            assert!(!out.exists());
+        }
+        assert!(kept.windows(2).all(|w| w[0] < w[1]), "{kept:?}");
+        if !complete {
+            let r = ensemble
+                .write_table(
+                    &options,
+                    &with_part(Control::new().resume()),
+                    &table(),
+                    output,
+                    &out,
+                )
+                .unwrap();
+            assert!(r.complete && r.kept > 0, "{r:?}");
+        }
+        assert!(read(&out) == read(&whole), "part {part:?}");
+        std::fs::remove_file(&out).unwrap();
+        std::fs::remove_file(&whole).unwrap();
+    }
+    // Nothing unfinished is left.
+    assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
+    std::fs::remove_dir(&dir).unwrap();
+}
+
+/// `summarize` keeps the statistics of every output at every output time over the verified
+/// members: against the values computed from all the outputs.
+#[test]
+fn summaries_agree_with_the_outputs() {
+    use ecr::runtime::ensemble::Summary;
+    let system = HenonHeiles::default().system().unwrap();
+    let options = Options::tolerance(1e-7).t_eval([1.0, 2.0]);
+    let make =
+        |_: &(), i: usize| Problem::new(&system, [0.0, 0.005 * i as f64, 0.4, 0.0], (0.0, 2.0));
+    let ensemble = Ensemble::new((), 60, make);
+    let all = ensemble.solve(&options, |_, s| s.y.clone()).unwrap();
+    let summary = Summary::new(2, 4, &[0.0, 0.5, 1.0]).unwrap();
+    let result = ensemble
+        .summarize(&options, &Control::new(), summary, |_, s, values| {
+            for (t, y) in s.y.iter().enumerate() {
+                values[4 * t..4 * t + 4].copy_from_slice(y);
+            }
+        })
+        .unwrap();
+    assert_eq!(result.summary.members(), 60);
+    for t in 0..2 {
+        for c in 0..4 {
+            let mut v: Vec<f64> = all
+                .members
+                .iter()
+                .map(|m| m.outcome.as_ref().unwrap()[t][c])
+                .collect();
+            let s = result.summary.get(t, c);
+            let mean = v.iter().sum::<f64>() / 60.0;
+            v.sort_by(f64::total_cmp);
+            assert_eq!((s.count, s.min, s.max), (60, v[0], v[59]));
+            assert!(
+                (s.mean - mean).abs() <= 1e-14 * mean.abs().max(1e-3),
+                "{t} {c}"
+            );
+            let median = v[29]; // rank ⌊0.5 · 59⌋
+            let q = s.quantiles[1].1;
+            assert!(
+                (q - median).abs() <= 1e-3 * median.abs() + 1e-300,
+                "{q} {median}"
+            );
+        }
+    }
+}

@@ -57,6 +57,8 @@ mod ecrp;
 mod ecrp_properties;
 #[cfg(feature = "problems")]
 mod ensemble;
+#[cfg(feature = "cli")]
+mod ensemble_example;
 #[cfg(feature = "problems")]
 mod fpu_tc;
 #[cfg(feature = "problems")]

@@ -215,7 +215,6 @@ impl<S: System> Problem<S> {
     /// there: solves of problems whose linear operators are equal may share one cache (the
     /// members of an ensemble that share their system). The cache must serve only such
     /// problems: its keys do not identify the operator.
-    #[allow(dead_code)] // for the ensembles' shared banks (issue 52), not wired yet
     pub(crate) fn solve_sharing(
         &self,
         options: &Options,

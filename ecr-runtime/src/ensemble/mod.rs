@@ -54,18 +54,57 @@
 //! whose results joined in member order are those of the whole ensemble. Interleaved parts
 //! share the costly regions of a parameter grid between them, where contiguous blocks would
 //! give one part all of them.
+//!
+//! # Streams, tables, summaries
+//!
+//! [`Ensemble::solve_in_order`] hands each member's result to a function of yours in member
+//! order as the members finish, holding at most a window of results (at most 256 per
+//! thread) to restore the order: memory does not grow with the members.
+//! [`Ensemble::write_table`] writes the rows of a [`Table`] that way into a file (CSV),
+//! synced every second, so that a job killed at any moment keeps the rows it finished and a
+//! run with [`Control::resume`] solves only the members that are missing; the file appears
+//! under its name only once complete ([`table`] says how). [`Ensemble::summarize`] keeps a
+//! [`Summary`] (count, mean, variance, extremes and quantiles of every output) instead of
+//! the outputs.
+//!
+//! # Shared φ-banks
+//!
+//! Each solve builds the φ-functions of its linear operator for every step size it uses
+//! (dense operators: O(d³) each). When every member has the same linear operator (members
+//! that differ in y₀, or in the nonlinearity only), [`Ensemble::share_banks`] lets them take
+//! the banks from one cache: the numbers are the same, bit for bit, as each member building
+//! its own.
+
+mod npy;
+mod summary;
+pub mod table;
 
 use std::ops::ControlFlow;
 use std::panic::{AssertUnwindSafe, catch_unwind};
-use std::sync::Mutex;
+use std::path::Path;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use rayon::prelude::*;
 
+pub use npy::table_to_npy;
+pub use summary::{Stat, Summary};
+pub use table::{Cell, Column, Kind, Table, TableReport, merge_parts};
+
 use crate::error::{Error, Result};
-use crate::solve::{Options, Problem, Solution, SolveError, Stats};
+use crate::operator::LinearOperator;
+use crate::solve::{Options, Problem, SOLVE_CACHE_BANKS, Solution, SolveCache, SolveError, Stats};
 use crate::system::System;
+
+/// Members per thread of the window that restores member order at most (see
+/// [`Ensemble::solve_in_order`]).
+const WINDOW_PER_THREAD: usize = 256;
+
+/// What a window of members should take: windows start at one member per thread and double
+/// while they take less than a quarter of this, halve while they take more, so that results
+/// come out (and a table's rows reach its file) about this often whatever a member costs.
+const WINDOW_TIME: Duration = Duration::from_millis(250);
 
 /// An ensemble of `len` problems: member i is made by `make(&template, i)` (a new y₀, new
 /// parameters) and solved with the ensemble's [`Options`].
@@ -78,6 +117,7 @@ pub struct Ensemble<T, M> {
     template: T,
     len: usize,
     make: M,
+    share: bool,
 }
 
 impl<T, M> Ensemble<T, M> {
@@ -88,7 +128,24 @@ impl<T, M> Ensemble<T, M> {
             template,
             len: members,
             make,
+            share: false,
         }
+    }
+
+    /// Members share their system's linear operator: their solves take the φ-banks from one
+    /// cache instead of each building its own (see the module docs). Only for ensembles
+    /// whose members all have the same linear operator A (the same y₀-independent matrix,
+    /// spectrum, …): the cache's keys are the method and the step size, not the operator,
+    /// and a member with another A would be solved with the wrong banks.
+    #[must_use]
+    pub fn share_banks(mut self) -> Self {
+        self.share = true;
+        self
+    }
+
+    /// Whether the members [share](Self::share_banks) their φ-banks.
+    pub fn shares_banks(&self) -> bool {
+        self.share
     }
 
     /// The number of members.
@@ -113,6 +170,8 @@ impl<T, M> Ensemble<T, M> {
 pub struct Control<'a> {
     part: (usize, usize),
     progress: Option<ProgressFn<'a>>,
+    start: usize,
+    resume: bool,
 }
 
 type ProgressFn<'a> = Box<dyn Fn(&Progress) -> ControlFlow<()> + Sync + 'a>;
@@ -122,6 +181,8 @@ impl std::fmt::Debug for Control<'_> {
         f.debug_struct("Control")
             .field("part", &self.part)
             .field("progress", &self.progress.is_some())
+            .field("start", &self.start)
+            .field("resume", &self.resume)
             .finish()
     }
 }
@@ -132,6 +193,53 @@ impl<'a> Control<'a> {
         Control {
             part: (0, 1),
             progress: None,
+            start: 0,
+            resume: false,
+        }
+    }
+
+    /// Only the members from index `member` on (of the part): those before are taken as
+    /// done, for [`Ensemble::solve_in_order`] continuing a stream that an earlier run
+    /// delivered up to `member` (exclusive).
+    #[must_use]
+    pub fn start_at(mut self, member: usize) -> Self {
+        self.start = member;
+        self
+    }
+
+    /// [`Ensemble::write_table`] continues the table that an earlier run of the same
+    /// ensemble (same table description, columns, part) left unfinished at the same path,
+    /// killed or stopped: its rows are kept and only the members after them are solved. The
+    /// table is then the one an uninterrupted run writes, byte for byte (its CPU column
+    /// aside). Without an unfinished table it starts from the first member.
+    #[must_use]
+    pub fn resume(mut self) -> Self {
+        self.resume = true;
+        self
+    }
+
+    /// The part (k of n) this control asks for.
+    pub fn part_of(&self) -> (usize, usize) {
+        self.part
+    }
+
+    /// Whether this control asks to [resume](Self::resume).
+    pub fn resumes(&self) -> bool {
+        self.resume
+    }
+
+    /// This control's progress callback and resume flag for part `k` of `n`, from member
+    /// `start` on: for engines that split an ensemble themselves (the MPI engine of the
+    /// `ecr` crate).
+    pub fn split(&self, k: usize, n: usize, start: usize) -> Control<'_> {
+        Control {
+            part: (k, n),
+            progress: self
+                .progress
+                .as_ref()
+                .map(|f| Box::new(move |p: &Progress| f(p)) as ProgressFn<'_>),
+            start,
+            resume: self.resume,
         }
     }
 
@@ -156,10 +264,13 @@ impl<'a> Control<'a> {
 /// Where the work of [`Ensemble::solve_with`] has got to, for its progress callback.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Progress {
-    /// Members finished (this one included).
+    /// Members finished (this one included), those skipped because they were done before
+    /// ([`Control::start_at`], [`Control::resume`]) included.
     pub done: usize,
-    /// Members to solve (of the part).
+    /// Members of the part, those skipped included.
     pub total: usize,
+    /// Members skipped because they were done before.
+    pub skipped: usize,
     /// Of the members finished, those whose answer could not be verified.
     pub unverified: usize,
     /// Of the members finished, those that failed (no solution, or a panic).
@@ -256,11 +367,48 @@ impl<O: std::fmt::Debug> std::error::Error for MemberError<O> {
     }
 }
 
+/// What [`Ensemble::solve_in_order`] did besides delivering the members.
+#[derive(Clone, Debug, Default)]
+pub struct Streamed {
+    /// Members delivered to the sink.
+    pub delivered: usize,
+    /// Members skipped as done before ([`Control::start_at`]).
+    pub skipped: usize,
+    /// What the solves cost, summed over the delivered members that have a solution.
+    pub stats: Stats,
+    /// Whether the progress callback stopped the work (the members after the last one
+    /// delivered were not delivered).
+    pub stopped: bool,
+}
+
+/// What [`Ensemble::summarize`] returns.
+#[derive(Clone, Debug)]
+pub struct SummaryResult {
+    /// The statistics over the verified members (for a fixed method: those that completed).
+    pub summary: Summary,
+    /// Members whose answer could not be verified (left out of the summary).
+    pub unverified: usize,
+    /// Members that failed, panicked or were not run (left out of the summary).
+    pub failed: usize,
+    /// What the solves cost, summed over the members that have a solution.
+    pub stats: Stats,
+    /// Whether the progress callback stopped the work.
+    pub stopped: bool,
+}
+
+/// The members of part k of n (0-based k) of `len` members: k, k + n, k + 2n, … below `len`.
+pub fn part_len(len: usize, k: usize, n: usize) -> usize {
+    if k < len { (len - k).div_ceil(n) } else { 0 }
+}
+
 impl<T, M, S> Ensemble<T, M>
 where
     T: Sync,
     M: Fn(&T, usize) -> Result<Problem<S>> + Sync,
     S: System,
+    // The φ-banks of the operator go between threads when shared (every operator of this
+    // crate's banks are plain data).
+    <S::Op as LinearOperator>::Bank: Send + Sync,
 {
     /// Member `index`, made as a solve makes it.
     ///
@@ -282,7 +430,10 @@ where
     ///
     /// # Errors
     /// Invalid `options` ([`Error::InvalidParameter`], [`Error::InvalidInput`], …), before
-    /// any member is solved. A member's own failure is its [`MemberError`], never an `Err`.
+    /// any member is solved; [`Error::InvalidInput`] when the results of all the members
+    /// cannot be held (use [`solve_in_order`](Self::solve_in_order), whose memory does not
+    /// grow with the members). A member's own failure is its [`MemberError`], never an
+    /// `Err`.
     pub fn solve<O, F>(&self, options: &Options, output: F) -> Result<EnsembleSolution<O>>
     where
         O: Send,
@@ -291,11 +442,13 @@ where
         self.solve_with(options, &Control::new(), output)
     }
 
-    /// [`solve`](Self::solve) of the members and with the progress callback of `control`.
+    /// [`solve`](Self::solve) of the members and with the progress callback of `control`
+    /// (members before [`Control::start_at`] are left out).
     ///
     /// # Errors
     /// As [`solve`](Self::solve), and [`Error::InvalidParameter`] for a part k of n with
-    /// n = 0 or k ≥ n.
+    /// n = 0 or k ≥ n. The vector of results is checked to fit in memory before anything
+    /// is solved.
     pub fn solve_with<O, F>(
         &self,
         options: &Options,
@@ -307,74 +460,274 @@ where
         F: Fn(usize, &Solution) -> O + Sync,
     {
         options.validate()?;
-        let (k, n) = control.part;
-        if n == 0 || k >= n {
-            return Err(Error::InvalidParameter(format!(
-                "part {k} of {n}: the parts are 0..n, n >= 1"
-            )));
+        let (k, n) = check_part(control.part)?;
+        let total = part_len(self.len, k, n);
+        let first = first_of_part(control.start, k, n).min(total);
+        crate::storage::ensure_bytes_allocatable(
+            &format!("the results of {} members", total - first),
+            (total - first).checked_mul(size_of::<MemberResult<O>>()),
+        )?;
+        // Grown as the members come (a stopped run holds only what it solved), not allocated
+        // in full up front.
+        let mut members = Vec::with_capacity((total - first).min(1 << 12));
+        let streamed = self.stream(options, control, first, &output, &mut |m| {
+            members.push(m);
+            Ok(())
+        })?;
+        for j in first + members.len()..total {
+            members.push(MemberResult {
+                index: k + j * n,
+                outcome: Err(MemberError::NotRun),
+                cpu: Duration::ZERO,
+            });
         }
-        let total = if k < self.len {
-            (self.len - k).div_ceil(n)
+        Ok(EnsembleSolution {
+            members,
+            stats: streamed.stats,
+            stopped: streamed.stopped,
+        })
+    }
+
+    /// Solves the members of `control`'s part on rayon's threads and calls `sink` with each
+    /// member's result **in member order**, on the calling thread, as they finish: members
+    /// are solved in windows (from one member per thread, doubled while a window takes under
+    /// 60 ms and halved while it takes over 250 ms, at most 256 per thread), and a window's
+    /// results are handed on in order once it is complete, so that what is held at once does
+    /// not depend on the number of members and results come out every quarter of a second or
+    /// so. Nothing is kept after `sink` returns.
+    ///
+    /// A progress callback that stops the work ends the stream after the last member solved
+    /// before it in member order ([`Streamed::stopped`]); members not delivered are not
+    /// passed to `sink` (neither as [`MemberError::NotRun`]). Members before
+    /// [`Control::start_at`] are skipped.
+    ///
+    /// # Errors
+    /// Invalid `options` or part (as [`solve_with`](Self::solve_with)), before any member
+    /// is solved, and the first `Err` that `sink` returns (the stream ends there).
+    pub fn solve_in_order<O, F, K>(
+        &self,
+        options: &Options,
+        control: &Control<'_>,
+        output: F,
+        mut sink: K,
+    ) -> Result<Streamed>
+    where
+        O: Send,
+        F: Fn(usize, &Solution) -> O + Sync,
+        K: FnMut(MemberResult<O>) -> Result<()>,
+    {
+        options.validate()?;
+        let (k, n) = check_part(control.part)?;
+        let first = first_of_part(control.start, k, n).min(part_len(self.len, k, n));
+        self.stream(options, control, first, &output, &mut sink)
+    }
+
+    /// Solves the members and keeps a [`Summary`] of the values that `output` writes for
+    /// each verified member (the summary's [`len`](Summary::len) of them, time-major), in
+    /// member order, instead of the outputs. `summary` says which quantiles and how many
+    /// values.
+    ///
+    /// # Errors
+    /// As [`solve_in_order`](Self::solve_in_order).
+    pub fn summarize<F>(
+        &self,
+        options: &Options,
+        control: &Control<'_>,
+        mut summary: Summary,
+        output: F,
+    ) -> Result<SummaryResult>
+    where
+        F: Fn(usize, &Solution, &mut [f64]) + Sync,
+    {
+        let len = summary.len();
+        let (mut unverified, mut failed) = (0, 0);
+        let streamed = self.solve_in_order(
+            options,
+            control,
+            |i, solution| {
+                let mut values = vec![f64::NAN; len];
+                output(i, solution, &mut values);
+                values
+            },
+            |m| {
+                match m.outcome {
+                    Ok(values) => summary.add(&values)?,
+                    Err(MemberError::Unverified { .. }) => unverified += 1,
+                    Err(_) => failed += 1,
+                }
+                Ok(())
+            },
+        )?;
+        Ok(SummaryResult {
+            summary,
+            unverified,
+            failed,
+            stats: streamed.stats,
+            stopped: streamed.stopped,
+        })
+    }
+
+    /// Solves the members of `control`'s part and writes their rows into the [`Table`] at
+    /// `path` as they finish (see [`table`]): `output(i, &solution)` gives the cells of
+    /// member i's output columns. With [`Control::resume`], the rows an unfinished earlier
+    /// run of the same table left are kept and only the missing members are solved.
+    ///
+    /// # Errors
+    /// Invalid options or part, a `path` that cannot be written, a file that another run is
+    /// writing (one line each, before any member is solved); a failed write or sync, and
+    /// output functions that return another number of cells than the table has output
+    /// columns (the table is then left unfinished, to be resumed).
+    pub fn write_table<F>(
+        &self,
+        options: &Options,
+        control: &Control<'_>,
+        table: &Table<'_>,
+        output: F,
+        path: &Path,
+    ) -> Result<TableReport>
+    where
+        F: Fn(usize, &Solution) -> Vec<Cell> + Sync,
+    {
+        options.validate()?;
+        let (k, n) = check_part(control.part)?;
+        let part = control.part != (0, 1) || table.is_part();
+        let mut writer = table::TableWriter::open(
+            path,
+            table,
+            self.len,
+            part.then_some((k, n)),
+            control.resume,
+        )?;
+        let from = writer.first_missing_member();
+        let first = first_of_part(from.max(control.start), k, n).min(part_len(self.len, k, n));
+        let mut row = Vec::new();
+        let streamed = self.stream(
+            options,
+            control,
+            first,
+            &|i, solution: &Solution| (output(i, solution), solution.error_estimate.is_some()),
+            &mut |m| {
+                row.clear();
+                table.format_row(&m, &mut row)?;
+                writer.write_row(&row, Table::status_of(&m))
+            },
+        )?;
+        let complete = !streamed.stopped;
+        let report = writer.report(streamed.stats, streamed.stopped);
+        if complete {
+            writer.commit()?;
         } else {
-            0
-        };
+            writer.pause()?;
+        }
+        Ok(report)
+    }
+
+    /// The engine: members `first..` of the part, in windows, delivered in order.
+    fn stream<O, F>(
+        &self,
+        options: &Options,
+        control: &Control<'_>,
+        first: usize,
+        output: &F,
+        sink: &mut dyn FnMut(MemberResult<O>) -> Result<()>,
+    ) -> Result<Streamed>
+    where
+        O: Send,
+        F: Fn(usize, &Solution) -> O + Sync,
+    {
+        let (k, n) = control.part;
+        let total = part_len(self.len, k, n);
+        let cache = self
+            .share
+            .then(|| Arc::new(SolveCache::<S>::new(SOLVE_CACHE_BANKS)));
         let stats = Mutex::new(Stats::default());
         let stop = AtomicBool::new(false);
         let (done, unverified, failed) = (
-            AtomicUsize::new(0),
+            AtomicUsize::new(first),
             AtomicUsize::new(0),
             AtomicUsize::new(0),
         );
-        let members = (0..total)
-            .into_par_iter()
-            .map(|j| {
-                let index = k + j * n;
-                if stop.load(Ordering::Relaxed) {
-                    return MemberResult {
+        let threads = rayon::current_num_threads().max(1);
+        let most = (threads * WINDOW_PER_THREAD).min(1 << 16);
+        let mut window = threads;
+        let mut results = Vec::new();
+        let mut streamed = Streamed {
+            skipped: first,
+            ..Streamed::default()
+        };
+        let mut j = first;
+        while j < total && !streamed.stopped {
+            let end = total.min(j.saturating_add(window));
+            let started = std::time::Instant::now();
+            (j..end)
+                .into_par_iter()
+                .map(|j| {
+                    let index = k + j * n;
+                    if stop.load(Ordering::Relaxed) {
+                        return (
+                            MemberResult {
+                                index,
+                                outcome: Err(MemberError::NotRun),
+                                cpu: Duration::ZERO,
+                            },
+                            None,
+                        );
+                    }
+                    let start = cpu_time();
+                    let (outcome, member_stats) = self.one(index, options, output, &cache);
+                    let cpu = cpu_time().saturating_sub(start);
+                    match &outcome {
+                        Ok(_) => {}
+                        Err(MemberError::Unverified { .. }) => {
+                            unverified.fetch_add(1, Ordering::Relaxed);
+                        }
+                        Err(_) => {
+                            failed.fetch_add(1, Ordering::Relaxed);
+                        }
+                    }
+                    let done = done.fetch_add(1, Ordering::Relaxed) + 1;
+                    if let Some(progress) = &control.progress {
+                        let p = Progress {
+                            done,
+                            total,
+                            skipped: first,
+                            unverified: unverified.load(Ordering::Relaxed),
+                            failed: failed.load(Ordering::Relaxed),
+                        };
+                        if progress(&p).is_break() {
+                            stop.store(true, Ordering::Relaxed);
+                        }
+                    }
+                    let m = MemberResult {
                         index,
-                        outcome: Err(MemberError::NotRun),
-                        cpu: Duration::ZERO,
+                        outcome,
+                        cpu,
                     };
+                    (m, member_stats)
+                })
+                .collect_into_vec(&mut results);
+            for (m, member_stats) in results.drain(..) {
+                if matches!(m.outcome, Err(MemberError::NotRun)) {
+                    streamed.stopped = true;
+                    break;
                 }
-                let start = cpu_time();
-                let (outcome, member_stats) = self.one(index, options, &output);
-                let cpu = cpu_time().saturating_sub(start);
                 if let Some(s) = member_stats {
                     add(&mut stats.lock().unwrap_or_else(|e| e.into_inner()), &s);
                 }
-                match &outcome {
-                    Ok(_) => {}
-                    Err(MemberError::Unverified { .. }) => {
-                        unverified.fetch_add(1, Ordering::Relaxed);
-                    }
-                    Err(_) => {
-                        failed.fetch_add(1, Ordering::Relaxed);
-                    }
-                }
-                let done = done.fetch_add(1, Ordering::Relaxed) + 1;
-                if let Some(progress) = &control.progress {
-                    let p = Progress {
-                        done,
-                        total,
-                        unverified: unverified.load(Ordering::Relaxed),
-                        failed: failed.load(Ordering::Relaxed),
-                    };
-                    if progress(&p).is_break() {
-                        stop.store(true, Ordering::Relaxed);
-                    }
-                }
-                MemberResult {
-                    index,
-                    outcome,
-                    cpu,
-                }
-            })
-            .collect();
-        Ok(EnsembleSolution {
-            members,
-            stats: stats.into_inner().unwrap_or_else(|e| e.into_inner()),
-            stopped: stop.into_inner(),
-        })
+                sink(m)?;
+                streamed.delivered += 1;
+            }
+            streamed.stopped |= stop.load(Ordering::Relaxed) && end < total;
+            j = end;
+            let took = started.elapsed();
+            if took < WINDOW_TIME / 4 {
+                window = (window * 2).min(most);
+            } else if took > WINDOW_TIME {
+                window = (window / 2).max(threads);
+            }
+        }
+        streamed.stats = stats.into_inner().unwrap_or_else(|e| e.into_inner());
+        Ok(streamed)
     }
 
     /// Member `index` made, solved and mapped, a panic of a user function caught: its outcome
@@ -384,18 +737,24 @@ where
         index: usize,
         options: &Options,
         output: &F,
+        cache: &Option<Arc<SolveCache<S>>>,
     ) -> (std::result::Result<O, MemberError<O>>, Option<Stats>)
     where
         F: Fn(usize, &Solution) -> O + Sync,
     {
         // A panic leaves nothing of the member's behind but what its own closures share with
-        // the others, which they were given only by shared reference.
+        // the others, which they were given only by shared reference (the bank cache is
+        // filled under its lock with complete banks only).
         let run = catch_unwind(AssertUnwindSafe(|| {
             let problem = match (self.make)(&self.template, index) {
                 Ok(p) => p,
                 Err(e) => return (Err(MemberError::Failed(e)), None),
             };
-            match problem.solve(options) {
+            let solved = match cache {
+                Some(cache) => problem.solve_sharing(options, cache),
+                None => problem.solve(options),
+            };
+            match solved {
                 Ok(solution) => {
                     let solution = solution.into_data();
                     (Ok(output(index, &solution)), Some(solution.stats))
@@ -412,6 +771,25 @@ where
             }
         }));
         run.unwrap_or_else(|payload| (Err(MemberError::Panicked(panic_message(&*payload))), None))
+    }
+}
+
+/// `(k, n)` if part k of n exists.
+fn check_part((k, n): (usize, usize)) -> Result<(usize, usize)> {
+    if n == 0 || k >= n {
+        return Err(Error::InvalidParameter(format!(
+            "part {k} of {n}: the parts are 0..n, n >= 1"
+        )));
+    }
+    Ok((k, n))
+}
+
+/// The position in part k of n of the first member whose index is at least `member`.
+fn first_of_part(member: usize, k: usize, n: usize) -> usize {
+    if member <= k {
+        0
+    } else {
+        (member - k).div_ceil(n)
     }
 }
 
