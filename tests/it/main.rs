@@ -80,6 +80,7 @@ mod second_order;
 mod solve;
 #[cfg(feature = "problems")]
 mod solve_edges;
+mod solve_nonsmooth;
 #[cfg(feature = "problems")]
 mod solve_options;
 #[cfg(feature = "problems")]
