@@ -66,6 +66,17 @@ fn kinks_never_get_a_wrong_ok() {
     eprintln!("kinks: {ok} of {all} Ok, the largest error of an Ok {worst_ok:.3e} tolerances");
 }
 
+/// y' = sech²((t − t_k)/w) with a clock over (0, 10), and the exact y(10).
+fn pulse(tk: f64, w: f64) -> (Problem<impl ecr::runtime::system::System>, f64) {
+    let system = Semilinear::new(Zero::new(2), move |y: &[f64], g: &mut [f64]| {
+        g[0] = 1.0;
+        let s = 1.0 / ((y[0] - tk) / w).cosh();
+        g[1] = s * s;
+    });
+    let problem = Problem::new(system, [0.0, 0.0], (0.0, 10.0)).unwrap();
+    (problem, w * (((10.0 - tk) / w).tanh() + (tk / w).tanh()))
+}
+
 /// y' = sech²((t − t_k)/w) with w = 0.003: a pulse far narrower than the steps a tolerance of
 /// 1e−8 allows elsewhere. `Options::max_step(w)` makes the steps see it: `Ok`, and within the
 /// tolerance of y(10) = w (tanh((10 − t_k)/w) + tanh(t_k/w)). (Without it no sampled method can
@@ -73,13 +84,7 @@ fn kinks_never_get_a_wrong_ok() {
 #[test]
 fn a_narrow_pulse_is_seen_with_max_step() {
     let (tk, w) = (6.665_632, 0.003);
-    let system = Semilinear::new(Zero::new(2), move |y: &[f64], g: &mut [f64]| {
-        g[0] = 1.0;
-        let s = 1.0 / ((y[0] - tk) / w).cosh();
-        g[1] = s * s;
-    });
-    let problem = Problem::new(system, [0.0, 0.0], (0.0, 10.0)).unwrap();
-    let exact = w * (((10.0 - tk) / w).tanh() + (tk / w).tanh());
+    let (problem, exact) = pulse(tk, w);
     for tol in [1e-6, 1e-8] {
         let sol = problem.solve(&Options::tolerance(tol).max_step(w)).unwrap();
         let y = sol.last().unwrap()[1];
@@ -189,13 +194,7 @@ fn kinks_beside_an_oscillator_never_get_a_wrong_ok() {
 #[test]
 fn a_sampled_pulse_never_gets_a_wrong_ok() {
     let (tk, w) = (6.665_632, 0.03);
-    let system = Semilinear::new(Zero::new(2), move |y: &[f64], g: &mut [f64]| {
-        g[0] = 1.0;
-        let s = 1.0 / ((y[0] - tk) / w).cosh();
-        g[1] = s * s;
-    });
-    let problem = Problem::new(system, [0.0, 0.0], (0.0, 10.0)).unwrap();
-    let exact = w * (((10.0 - tk) / w).tanh() + (tk / w).tanh());
+    let (problem, exact) = pulse(tk, w);
     for tol in [1e-4, 1e-6, 1e-8, 1e-10] {
         match problem.solve(&Options::tolerance(tol)) {
             Ok(sol) => {

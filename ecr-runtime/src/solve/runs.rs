@@ -318,14 +318,10 @@ pub(super) fn slope<S: System>(
 /// # Errors
 /// [`Error::NonFinite`] if the increment is not finite.
 pub(super) fn drift<S: System>(system: &S, y: &mut [f64], dt: f64) -> Result<()> {
-    let d = y.len();
-    let mut f = vec![0.0; d];
-    let mut g = vec![0.0; d];
-    let mut scratch = vec![0.0; system.scratch_len()];
-    system.linear().apply(y, &mut f);
-    system.nonlinear(y, &mut g, &mut scratch);
-    for ((v, a), b) in y.iter_mut().zip(&f).zip(&g) {
-        let dy = dt * (a + b);
+    let mut f = vec![0.0; y.len()];
+    slope(system, y, &mut f, &mut Vec::new())?;
+    for (v, a) in y.iter_mut().zip(&f) {
+        let dy = dt * a;
         if !dy.is_finite() {
             return Err(Error::NonFinite("the vector field at the end of the span"));
         }
