@@ -87,6 +87,7 @@ mod solve_options;
 mod solve_roundoff;
 #[cfg(feature = "problems")]
 mod solve_suite;
+mod solve_switch;
 #[cfg(feature = "baselines")]
 mod stage_scale;
 #[cfg(feature = "baselines")]

@@ -73,6 +73,33 @@ enum Attempt {
     Failed { record: Record, reason: String },
 }
 
+/// A feature inside one step of a window (see [`local_step`]) being passed with smaller steps:
+/// what its step added to the estimate, with which step size, and the end of that step.
+#[derive(Clone, Copy, Debug)]
+struct Feature {
+    delta: f64,
+    h: f64,
+    until: f64,
+}
+
+/// The step of a window that carries more than half of the growth of its estimate (the
+/// largest estimate so far, from `worst` before the window), and what it adds; `None` where
+/// the growth is spread over the steps (an error carried by the flow grows step by step).
+fn local_step(points: &[super::window::GridPoint], worst: f64) -> Option<(usize, f64)> {
+    let (mut top, mut best) = (worst, None::<(usize, f64)>);
+    for (j, q) in points.iter().enumerate() {
+        if q.est > top {
+            let delta = q.est - top;
+            top = q.est;
+            if best.is_none_or(|(_, d)| delta > d) {
+                best = Some((j, delta));
+            }
+        }
+    }
+    let growth = top - worst;
+    best.filter(|&(_, d)| growth > 0.0 && d > 0.5 * growth)
+}
+
 /// The step of the ladder at or below h.
 fn on_ladder(h: f64, base: f64) -> f64 {
     let k = (LADDER * (h / base).log2()).floor();
@@ -317,6 +344,8 @@ fn run(
     // since, over the last 1/RECENT of the span.
     let mut changed = (ctx.t0, 0.0_f64);
     let mut recent: Vec<(f64, f64)> = Vec::new();
+    // The feature inside one step being passed with smaller steps, if any.
+    let mut feature: Option<Feature> = None;
     while state.t < ctx.t_end - ctx.same_time && !record.ended() {
         let stop = ctx.next_stop(state.t);
         let room = stop - state.t;
@@ -360,7 +389,7 @@ fn run(
             (state.t, 0)
         };
         let mut cost = Cost::default();
-        let points = match advance(ctx, runs, &state, origin, steps, end, &mut cost) {
+        let mut points = match advance(ctx, runs, &state, origin, steps, end, &mut cost) {
             Ok(points) => points,
             Err(StepFailure { t, h: hf, error }) => {
                 stats.discard(&cost);
@@ -411,7 +440,67 @@ fn run(
             h = on_ladder(hw * 0.7, ladder);
             continue;
         }
+        // A feature inside one step of the window — a jump or a kink of g at a time nobody
+        // announced, a close passage — adds its error in that step: the step that carries most
+        // of the window's growth. Its step is made smaller while that brings what the step adds
+        // down (compared as it is, not per unit time: the error of a jump is made once, in
+        // proportion to the step over it), the steps before it are kept, and the steps grow
+        // back after it.
+        let mut shrunk = false;
         if (over || growth > 0.5 * room) && !permissive {
+            let local = local_step(&points, state.worst)
+                .filter(|_| retries < MAX_WINDOW_TRIES && hw > resolution(state.t) * 16.0);
+            if let Some((j, delta)) = local {
+                let helped = feature.is_none_or(|f: Feature| delta < 0.7 * f.delta);
+                if helped {
+                    // The order of what the step adds, seen from the last two tries at this
+                    // feature (a jump of g: 1; a kink: 2; a smooth passage: the check's), or
+                    // 2 at the first try.
+                    let (q, least) = match feature {
+                        Some(f) if hw < f.h && delta < f.delta => (
+                            ((f.delta / delta).ln() / (f.h / hw).ln()).clamp(1.0, P_BOLD),
+                            1.0 / 64.0,
+                        ),
+                        _ => (2.0, 0.125),
+                    };
+                    let factor = (0.25 * room / delta).powf(1.0 / q).clamp(least, 0.5);
+                    feature = Some(Feature {
+                        delta,
+                        h: hw,
+                        until: points[j].t,
+                    });
+                    stats.retries += 1;
+                    retries += 1;
+                    h = on_ladder(hw * factor, ladder);
+                    let before = points[..j]
+                        .iter()
+                        .map(|q| q.est)
+                        .fold(state.worst, f64::max);
+                    let t_feature = points[j].t;
+                    options.say(|| {
+                        format!(
+                            "window at t = {:?}, h = {hw:.4e}: the step to t = {t_feature:?} adds \
+                             {delta:.3e} of the estimate's {growth:.3e} → that step again with \
+                             h × {factor:.3e} (order {q:.2})",
+                            state.t
+                        )
+                    });
+                    if j > 0 && before <= LIMIT && before - state.worst <= 0.5 * room {
+                        // Keep the steps before the feature.
+                        stats.discard(&cost.take_share(points.len() - j, points.len()));
+                        points.truncate(j);
+                        shrunk = true;
+                    } else {
+                        stats.discard(&cost);
+                        continue;
+                    }
+                }
+            }
+        }
+        let last = points.last().expect("a window has a step");
+        let worst = points.iter().map(|q| q.est).fold(state.worst, f64::max);
+        let growth = worst - state.worst;
+        if (over || growth > 0.5 * room) && !permissive && !shrunk {
             // A smaller step for this window while that brings its growth down. Compared per
             // unit time: a smaller step also makes the window shorter, which lowers the growth
             // of an error carried into it (amplified by the flow) as much as its duration, that
@@ -519,12 +608,26 @@ fn run(
         segment = (origin.0, hw, origin.1 + points.len());
         // Windows integrated again in a row: the run's level is too high for the stretch, not
         // one passage in it; the level comes down to twice the step that was kept.
-        strained = if rejected.is_some() { strained + 1 } else { 0 };
+        // A feature inside one step (being passed) does not say that.
+        strained = if rejected.is_some() && feature.is_none() {
+            strained + 1
+        } else {
+            0
+        };
         if strained >= 3 && base > 2.0 * hw {
             base = 2.0 * hw;
             strained = 0;
         }
-        (stuck, retries, rejected, doubted) = (0, 0, None, false);
+        if shrunk {
+            // The next window starts at the feature: a retry of the window before compares
+            // with nothing there.
+            (rejected, doubted) = (None, false);
+        } else {
+            (stuck, retries, rejected, doubted) = (0, 0, None, false);
+        }
+        if feature.is_some_and(|f| last.t >= f.until) {
+            feature = None;
+        }
         if failure.as_ref().is_some_and(|f| last.t > f.0) {
             failure = None;
         }
@@ -592,11 +695,20 @@ fn run(
                 });
             }
         }
-        // Back towards the run's level after a window integrated again with a smaller step.
-        h = on_ladder(
-            base.min(max_step).min(std::f64::consts::SQRT_2 * hw),
-            ladder,
-        );
+        // Back towards the run's level after a window integrated again with a smaller step: by
+        // up to 4 at once where the window used little of what is left of the tolerance (after
+        // a jump of g the steps come back from far below the level), else by √2.
+        if !shrunk {
+            let left = (LIMIT - worst).max(0.0);
+            let up = if growth <= 0.01 * left {
+                4.0
+            } else if growth <= 0.1 * left {
+                2.0
+            } else {
+                std::f64::consts::SQRT_2
+            };
+            h = on_ladder(base.min(max_step).min(up * hw), ladder);
+        }
         options.say(|| {
             format!(
                 "kept t = {:?} h = {hw:.4e} base {base:.4e} estimate {worst:.3e} → h = {h:.4e}",

@@ -36,7 +36,7 @@
 //! # How it is checked
 //!
 //! The answer is ECrP of order 2r on the r Gauss–Legendre points of each step. Beside it runs
-//! its check: ECr−1P of order 2r − 2 on the r Gauss–Lobatto points of the step (both ends
+//! its check: ECr−1P of order 2r − 2 on the r + 1 Gauss–Lobatto points of the step (both ends
 //! included), on the same steps, from its own state. Every grid point is a meeting point: the
 //! difference of the two there is the global error of the check (the answer's is of higher
 //! order, and measured 10 to 10⁴ times smaller), and that difference, plus a model of the
@@ -243,6 +243,7 @@ impl<S: System> Problem<S> {
         let system = &*self.system;
         let verified = !matches!(options.method, Method::Fixed { .. });
         let ctx = window::Ctx::new(options, (self.t0, self.t_end), &self.y0, verified);
+        let settings = stage_settings(options, verified);
         let mut make = |r: usize, check: bool, h: f64| -> Result<Box<dyn runs::Runs + '_>> {
             crate::storage::ensure_bytes_allocatable(
                 &format!(
@@ -250,9 +251,9 @@ impl<S: System> Problem<S> {
                     system.dim(),
                     if check { ", with its check" } else { "" }
                 ),
-                solve_stepper_bytes(system, r, check, &options.settings),
+                solve_stepper_bytes(system, r, check, &settings),
             )?;
-            let runs = runs::PairRuns::new(system, r, check, h, options.settings, cache)?;
+            let runs = runs::PairRuns::new(system, r, check, h, settings, cache)?;
             Ok(Box::new(runs))
         };
         match options.method {
@@ -291,6 +292,19 @@ impl<S: System> Problem<S> {
                         "y0 holds {big:e}, too close to the largest f64 ({:e}) for its rounding \
                          to be bounded: the steps would overflow; rescale the problem",
                         f64::MAX
+                    ))
+                    .into());
+                }
+                // Stops and a largest step that need more steps than allowed: refused before
+                // the run, with the count (counted without building the grid).
+                let least = ctx.least_steps();
+                if least > options.max_steps as f64 {
+                    return Err(Error::InvalidInput(format!(
+                        "max_step = {:e} and {} tstops in the span need at least {least:.0} \
+                         steps, more than max_steps = {}",
+                        options.max_step,
+                        ctx.stops.len() - 1,
+                        options.max_steps
                     ))
                     .into());
                 }
@@ -344,10 +358,28 @@ pub fn linspace(a: f64, b: f64, n: usize) -> Vec<f64> {
     }
 }
 
+/// The stage solver's settings of a solve: the user's, and for a solve to a tolerance whose
+/// stage scale is the default [`StageScale::Global`](crate::stepper::StageScale::Global) (the
+/// stage update measured against max(1, ‖Y‖∞)) that scale with the floor atol/rtol (at most 1,
+/// at least the least normal f64): the tolerance's own weights atol + rtol·|y| say what size is
+/// small, so a state of 1e−100 solved with rtol alone converges relative to its size, as one
+/// of size 1 does. A tolerance with atol ≥ rtol keeps the floor 1: the same steps, to the bit.
+fn stage_settings(options: &Options, verified: bool) -> crate::stepper::SolverSettings {
+    use crate::stepper::StageScale;
+    let mut settings = options.settings;
+    if verified && settings.scale == StageScale::Global && options.rtol > 0.0 {
+        let floor = (options.atol / options.rtol).clamp(f64::MIN_POSITIVE, 1.0);
+        if floor < 1.0 {
+            settings.scale = StageScale::GlobalFloor { floor };
+        }
+    }
+    settings
+}
+
 /// The bytes the steppers of one solve of `system` at order 2r hold at their peak, or `None`
-/// if the count overflows a `usize`: the answer and its check (ECr−1P on r Gauss–Lobatto
-/// points: the same sizes as the answer's) and their copies for values between grid points,
-/// each as [`ec_stepper_bytes`](crate::stepper::ec_stepper_bytes) counts it (s = r), together
+/// if the count overflows a `usize`: the answer (s = r) and its check (ECr−1P on r + 1
+/// Gauss–Lobatto points) and their copies for values between grid points, each as
+/// [`ec_stepper_bytes`](crate::stepper::ec_stepper_bytes) counts it, together
 /// with the largest bank once more (a change of step size builds the new bank before the old
 /// one goes) and the banks the solve keeps for step sizes it may come back to (at most 16, and
 /// at most 256 MiB beyond the largest). With `check == false` (a fixed-step solve) the answer
@@ -363,19 +395,19 @@ pub fn solve_stepper_bytes<S: System>(
     settings: &crate::stepper::SolverSettings,
 ) -> Option<usize> {
     use crate::stepper::{Predictor, SolverSettings, StepperBytes, ec_stepper_bytes};
-    let run = ec_stepper_bytes(system, r, r, settings)?;
-    let between = ec_stepper_bytes(
-        system,
-        r,
-        r,
-        &SolverSettings {
-            predictor: Predictor::Constant,
-            ..*settings
-        },
-    )?;
-    let copies = if check { 2 } else { 1 };
-    let mut held = vec![run; copies];
-    held.extend(std::iter::repeat_n(between, copies));
+    let between_settings = SolverSettings {
+        predictor: Predictor::Constant,
+        ..*settings
+    };
+    let mut held = vec![
+        ec_stepper_bytes(system, r, r, settings)?,
+        ec_stepper_bytes(system, r, r, &between_settings)?,
+    ];
+    if check {
+        held.push(ec_stepper_bytes(system, r - 1, r + 1, settings)?);
+        held.push(ec_stepper_bytes(system, r - 1, r + 1, &between_settings)?);
+    }
+    let run = held[0];
     let peak = StepperBytes::peak_of(&held)?;
     let budget = (crate::stepper::CACHE_BUDGET * size_of::<f64>()).max(run.bank);
     let kept = run.bank.saturating_mul(SOLVE_CACHE_BANKS).min(budget);

@@ -132,13 +132,30 @@ impl<'o> Ctx<'o> {
             .fold(0.0, f64::max)
     }
 
-    /// The next time steps must land on after `t`.
+    /// The next time steps must land on after `t` (a binary search: O(log n) per window, so
+    /// 10⁶ stops cost no more than their sort).
     pub(super) fn next_stop(&self, t: f64) -> f64 {
-        self.stops
-            .iter()
-            .copied()
-            .find(|&s| s > t + self.same_time)
-            .unwrap_or(self.t_end)
+        let after = t + self.same_time;
+        let i = self.stops.partition_point(|&s| s <= after);
+        self.stops.get(i).copied().unwrap_or(self.t_end)
+    }
+
+    /// The least number of steps the stops and `max_step` force on a run over the span: one
+    /// step per stretch between stops, ⌈length / max_step⌉ where `max_step` is finite.
+    pub(super) fn least_steps(&self) -> f64 {
+        let max_step = self.options.max_step;
+        let mut from = self.t0;
+        let mut steps = 0.0;
+        for &s in &self.stops {
+            let length = s - from;
+            steps += if max_step.is_finite() {
+                (length / max_step).ceil().max(1.0)
+            } else {
+                1.0
+            };
+            from = s;
+        }
+        steps
     }
 
     /// The state at t₀.

@@ -98,9 +98,10 @@ impl<K: Kernel, S: System, B: Buffers> StepContext<'_, K, S, B> {
     ) -> Result<Iteration> {
         let (_, s, d) = self.sizes;
         let (tolerance, max_sweeps) = (self.settings.tolerance, self.settings.max_sweeps);
-        let atol = match self.settings.scale {
-            StageScale::PerComponent { atol } => atol,
-            StageScale::Global => 1.0,
+        let (atol, floor) = match self.settings.scale {
+            StageScale::PerComponent { atol } => (atol, 1.0),
+            StageScale::Global => (1.0, 1.0),
+            StageScale::GlobalFloor { floor } => (1.0, floor),
         };
         let (mut sweeps, mut g_evals, mut theta_step) = (0, 0, 0.0_f64);
         // The last update in the stopping rule's scale and in the global one.
@@ -137,7 +138,7 @@ impl<K: Kernel, S: System, B: Buffers> StepContext<'_, K, S, B> {
                     d,
                 )?;
             }
-            let global = global_update(new_stages, stages);
+            let global = global_update(new_stages, stages, floor);
             // The stopping rule's measure (per component: a second pass).
             let residual = if per_component {
                 per_component_update(new_stages, stages, atol)

@@ -82,6 +82,15 @@ pub enum StageScale {
     /// size 1 keeps a relative error of up to `tolerance`/1e−20).
     #[default]
     Global,
+    /// ‖ΔY‖∞ / max(floor, ‖Y‖∞): [`Global`](Self::Global) with another floor (Global's is 1):
+    /// relative to the largest stage component down to `floor` (> 0, finite), absolute below.
+    /// `solve` takes floor = atol/rtol (at most 1) when its tolerance is mostly relative, so
+    /// that a state of size 1e−100 solved with rtol alone converges relative to its own size,
+    /// as one of size 1 does. As cheap as Global.
+    GlobalFloor {
+        /// States smaller than this are measured absolutely.
+        floor: f64,
+    },
     /// `max_i |ΔY_i| / max(|Y_i|, atol)`: each component relative to itself, absolute below `atol`
     /// (> 0, finite). For states whose components differ in size by many orders of magnitude.
     /// Components whose own rounding error is far above ε in their own scale (near zero, or
@@ -177,6 +186,13 @@ impl SolverSettings {
             if !(atol.is_finite() && atol > 0.0) {
                 return Err(Error::InvalidParameter(format!(
                     "StageScale::PerComponent needs a finite atol > 0 (got {atol:?})"
+                )));
+            }
+        }
+        if let StageScale::GlobalFloor { floor } = self.scale {
+            if !(floor.is_finite() && floor > 0.0) {
+                return Err(Error::InvalidParameter(format!(
+                    "StageScale::GlobalFloor needs a finite floor > 0 (got {floor:?})"
                 )));
             }
         }

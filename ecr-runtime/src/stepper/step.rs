@@ -368,7 +368,10 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
         // path, where the step's work is a factorisation, a second pass or a thread handshake
         // (Newton on Duffing, EC4P: 0.6 % more instructions with the flags read at run time).
         let plain = self.settings.solver == StageSolver::FixedPoint
-            && matches!(self.settings.scale, StageScale::Global)
+            && matches!(
+                self.settings.scale,
+                StageScale::Global | StageScale::GlobalFloor { .. }
+            )
             && (B::LOCAL_STAGES || self.par.is_none());
         if plain {
             self.step_plain(y)

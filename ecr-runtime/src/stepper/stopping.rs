@@ -172,7 +172,8 @@ pub(crate) fn all_finite(x: &[f64]) -> bool {
     (acc[0] + acc[1]) + (acc[2] + acc[3]) + rest == 0.0
 }
 
-/// The global measure of a stage update, `‖new − old‖∞ / max(1, ‖new‖∞)`. max |Yᵢ| is taken
+/// The global measure of a stage update, `‖new − old‖∞ / max(floor, ‖new‖∞)` (floor 1 for
+/// [`StageScale::Global`](super::StageScale::Global)). max |Yᵢ| is taken
 /// over the bit patterns: for non-negative floats they order as the values do, and |NaN|
 /// orders above ∞, so a NaN or infinite stage makes the measure NaN (`f64::max` would skip
 /// NaN); the update's max can skip it (comparisons are cheaper).
@@ -182,9 +183,9 @@ pub(crate) fn all_finite(x: &[f64]) -> bool {
 /// tenth of `ecr run`). A maximum does not round, and NaN updates are skipped in every lane:
 /// the same number as one chain (`global_update_is_one_chain_bit_for_bit`).
 #[inline(always)]
-pub(super) fn global_update(new: &[f64], old: &[f64]) -> f64 {
+pub(super) fn global_update(new: &[f64], old: &[f64], floor: f64) -> f64 {
     debug_assert_eq!(new.len(), old.len());
-    let (mut diff, mut mag) = ([0.0_f64; 4], [1.0_f64.to_bits(); 4]);
+    let (mut diff, mut mag) = ([0.0_f64; 4], [floor.to_bits(); 4]);
     let (new_quads, old_quads) = (new.chunks_exact(4), old.chunks_exact(4));
     let rest = new_quads.remainder().iter().zip(old_quads.remainder());
     for (a4, b4) in new_quads.zip(old_quads) {
@@ -261,7 +262,7 @@ mod tests {
                         old[i] = v;
                     }
                 }
-                let (got, want) = (global_update(&new, &old), one_chain(&new, &old));
+                let (got, want) = (global_update(&new, &old, 1.0), one_chain(&new, &old));
                 assert_eq!(got.to_bits(), want.to_bits(), "n = {n}, trial {trial}");
             }
         }
