@@ -211,8 +211,10 @@ where
     let comm = &world.comm.0;
     let (rank, size) = (world.rank, world.size);
     let len = ensemble.len();
-    let opened =
-        (rank == 0).then(|| TableWriter::open(path, table, len, None, control_resume(control)));
+    let opened = (rank == 0).then(|| {
+        let fingerprint = ensemble.fingerprint(options, table)?;
+        TableWriter::open(path, table, &fingerprint, None, control_resume(control))
+    });
     let mut msg = [0u64; 2];
     if let Some(Ok(w)) = &opened {
         msg = [1, w.first_missing_member() as u64];

@@ -75,6 +75,7 @@
 //! the banks from one cache: the numbers are the same, bit for bit, as each member building
 //! its own.
 
+pub mod fingerprint;
 mod npy;
 mod summary;
 pub mod table;
@@ -88,6 +89,7 @@ use std::time::Duration;
 
 use rayon::prelude::*;
 
+pub use fingerprint::Fingerprint;
 pub use npy::table_to_npy;
 pub use summary::{Stat, Summary};
 pub use table::{Cell, Column, Kind, Table, TableReport, merge_parts};
@@ -208,10 +210,14 @@ impl<'a> Control<'a> {
     }
 
     /// [`Ensemble::write_table`] continues the table that an earlier run of the same
-    /// ensemble (same table description, columns, part) left unfinished at the same path,
-    /// killed or stopped: its rows are kept and only the members after them are solved. The
-    /// table is then the one an uninterrupted run writes, byte for byte (its CPU column
-    /// aside). Without an unfinished table it starts from the first member.
+    /// ensemble left unfinished at the same path, killed or stopped: its rows are kept and
+    /// only the members after them are solved. The table is then the one an uninterrupted
+    /// run writes, byte for byte (its CPU column aside). Without an unfinished table it
+    /// starts from the first member. An unfinished table of another run (another
+    /// [fingerprint](fingerprint): options, span, inputs, member count, columns, key,
+    /// description, …) is refused in one line naming the field that differs, and left as it
+    /// is; a row that does not read as the table writes it is solved again, with those
+    /// after it.
     #[must_use]
     pub fn resume(mut self) -> Self {
         self.resume = true;
@@ -425,6 +431,53 @@ where
         (self.make)(&self.template, index)
     }
 
+    /// The [fingerprint](fingerprint) of a run of this ensemble with `options` into
+    /// `table`: what [`write_table`](Self::write_table) writes at the top of the table and
+    /// a resume or a merge compares. Makes member 0 (for its span and y₀) and formats every
+    /// member's input cells (for their digest).
+    ///
+    /// # Errors
+    /// [`Error::InvalidInput`] if the table's input function gives another number of cells
+    /// than it has input columns.
+    pub fn fingerprint(&self, options: &Options, table: &Table<'_>) -> Result<Fingerprint> {
+        let mut fields = vec![(
+            "version".to_string(),
+            format!("ecr-runtime {}", env!("CARGO_PKG_VERSION")),
+        )];
+        fields.extend(
+            options
+                .fingerprint_fields()
+                .into_iter()
+                .map(|(n, v)| (n.to_string(), v)),
+        );
+        let (span, y0) = if self.len == 0 {
+            ("no member".to_string(), "no member".to_string())
+        } else {
+            match catch_unwind(AssertUnwindSafe(|| self.member(0))) {
+                Ok(Ok(p)) => (format!("{:?}", p.span()), fingerprint::numbers(p.y0())),
+                Ok(Err(e)) => {
+                    let e = format!("member 0 not made: {e}");
+                    (e.clone(), e)
+                }
+                Err(_) => {
+                    let e = "member 0 not made: a panic".to_string();
+                    (e.clone(), e)
+                }
+            }
+        };
+        let header = table.header();
+        fields.extend([
+            ("span".to_string(), span),
+            ("y0".to_string(), y0),
+            ("members".to_string(), self.len.to_string()),
+            ("columns".to_string(), header.trim_end().to_string()),
+            ("inputs".to_string(), table.inputs_digest(self.len)?),
+            ("key".to_string(), table.key_text().to_string()),
+            ("description".to_string(), table.description().to_string()),
+        ]);
+        Ok(Fingerprint::new(fields))
+    }
+
     /// Solves every member with `options` on rayon's threads, keeping `output(i, &solution)`
     /// of member i (see the module docs).
     ///
@@ -591,10 +644,11 @@ where
         options.validate()?;
         let (k, n) = check_part(control.part)?;
         let part = control.part != (0, 1) || table.is_part();
+        let fingerprint = self.fingerprint(options, table)?;
         let mut writer = table::TableWriter::open(
             path,
             table,
-            self.len,
+            &fingerprint,
             part.then_some((k, n)),
             control.resume,
         )?;
@@ -849,6 +903,9 @@ fn cpu_time() -> Duration {
     static START: std::sync::OnceLock<std::time::Instant> = std::sync::OnceLock::new();
     START.get_or_init(std::time::Instant::now).elapsed()
 }
+
+#[cfg(test)]
+mod table_tests;
 
 #[cfg(test)]
 mod tests {

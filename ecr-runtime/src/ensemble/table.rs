@@ -44,6 +44,7 @@ use std::time::{Duration, Instant};
 
 use sha2::{Digest, Sha256};
 
+use super::fingerprint::{Fingerprint, hex};
 use super::{MemberError, MemberResult, part_len};
 use crate::error::{Error, Result};
 use crate::solve::Stats;
@@ -122,6 +123,7 @@ type InputFn<'a> = Box<dyn Fn(usize, &mut Vec<Cell>) + Sync + 'a>;
 /// columns.
 pub struct Table<'a> {
     description: String,
+    key: String,
     inputs: Vec<Column>,
     input_cells: Option<InputFn<'a>>,
     outputs: Vec<Column>,
@@ -133,6 +135,7 @@ impl std::fmt::Debug for Table<'_> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Table")
             .field("description", &self.description)
+            .field("key", &self.key)
             .field("inputs", &self.inputs)
             .field("outputs", &self.outputs)
             .finish()
@@ -215,6 +218,7 @@ impl<'a> Table<'a> {
     pub fn new(description: impl Into<String>, outputs: Vec<Column>) -> Table<'static> {
         Table {
             description: description.into().replace(['\r', '\n'], " "),
+            key: String::new(),
             inputs: Vec::new(),
             input_cells: None,
             outputs,
@@ -232,12 +236,28 @@ impl<'a> Table<'a> {
     ) -> Table<'b> {
         Table {
             description: self.description,
+            key: self.key,
             inputs: columns,
             input_cells: Some(Box::new(cells)),
             outputs: self.outputs,
             part_file: self.part_file,
             cpu: self.cpu,
         }
+    }
+
+    /// A key of your own in the table's [fingerprint](super::fingerprint) (line breaks become
+    /// spaces): for what decides the rows that the library cannot see, such as the version of
+    /// the model's code or of a data file it reads. A resume or a merge refuses rows written
+    /// with another key.
+    #[must_use]
+    pub fn key(mut self, key: impl Into<String>) -> Self {
+        self.key = key.into().replace(['\r', '\n'], " ");
+        self
+    }
+
+    /// The key ([`key`](Self::key); empty if none was given).
+    pub fn key_text(&self) -> &str {
+        &self.key
     }
 
     /// Writes a part file (first and end lines) even for the whole ensemble (part 1 of 1).
@@ -278,6 +298,89 @@ impl<'a> Table<'a> {
         h.join(",") + "\n"
     }
 
+    /// The number of fields of a row (and of the header).
+    fn field_count(&self) -> usize {
+        self.inputs.len() + self.outputs.len() + 3 + usize::from(self.cpu)
+    }
+
+    /// Appends the start of member `index`'s row, as every row of it starts: its index and its
+    /// input cells, each after a comma.
+    ///
+    /// # Errors
+    /// [`Error::InvalidInput`] if the input function gives another number of cells than there
+    /// are input columns.
+    fn push_inputs(&self, index: usize, out: &mut Vec<u8>) -> Result<()> {
+        let mut cells = Vec::with_capacity(self.inputs.len());
+        if let Some(f) = &self.input_cells {
+            f(index, &mut cells);
+        }
+        if cells.len() != self.inputs.len() {
+            return Err(Error::InvalidInput(format!(
+                "the table's input function gave {} cells for member {index}, for {} input \
+                 columns",
+                cells.len(),
+                self.inputs.len()
+            )));
+        }
+        write!(out, "{index}").map_err(io_err("a row"))?;
+        for c in &cells {
+            out.push(b',');
+            push_cell(out, c);
+        }
+        Ok(())
+    }
+
+    /// The SHA-256 digest of the input cells of members `0..members` as their rows start
+    /// ([`push_inputs`](Self::push_inputs), each with a line break), for the fingerprint.
+    ///
+    /// # Errors
+    /// As [`push_inputs`](Self::push_inputs).
+    pub(crate) fn inputs_digest(&self, members: usize) -> Result<String> {
+        let mut h = Sha256::new();
+        let mut row = Vec::new();
+        for i in 0..members {
+            row.clear();
+            self.push_inputs(i, &mut row)?;
+            row.push(b'\n');
+            h.update(&row);
+        }
+        Ok(format!("sha256 {}", hex(&h.finalize())))
+    }
+
+    /// The status of member `index`'s row `line` (with its line break) if the row reads as
+    /// the table writes it: its index and input cells those of the member, as many fields as
+    /// the header, a known status, every output cell empty or a number written as the table
+    /// writes numbers (a count of a column of counts), and the CPU time a number.
+    fn check_row(&self, index: usize, line: &[u8], start: &mut Vec<u8>) -> Option<Status> {
+        let text = std::str::from_utf8(line).ok()?.strip_suffix('\n')?;
+        if text.contains(['\0', '\r']) {
+            return None;
+        }
+        start.clear();
+        self.push_inputs(index, start).ok()?;
+        start.push(b',');
+        let rest = text.as_bytes().strip_prefix(&start[..])?;
+        let cells = super::npy::fields(std::str::from_utf8(rest).ok()?);
+        let expect = self.field_count() - 1 - self.inputs.len();
+        if cells.len() != expect {
+            return None;
+        }
+        let status = Status::from_word(&cells[0])?;
+        let outputs = &cells[1..1 + self.outputs.len()];
+        let numbers_ok = self.outputs.iter().zip(outputs).all(|(c, cell)| {
+            cell.is_empty()
+                || match c.kind {
+                    Kind::F64 => cell.parse::<f64>().is_ok_and(|x| format!("{x:?}") == *cell),
+                    Kind::U64 => cell.parse::<u64>().is_ok_and(|n| n.to_string() == *cell),
+                }
+        });
+        let cpu_ok = !self.cpu
+            || cells
+                .last()
+                .is_some_and(|c| c.parse::<f64>().is_ok_and(|x| format!("{x:?}") == *c));
+        (numbers_ok && cpu_ok).then_some(status)
+    }
+
     /// A row's bytes at most, roughly: 24 per number, for the estimate of a table's size.
     pub fn estimated_row_bytes(&self) -> usize {
         let cells = self.inputs.len() + self.outputs.len() + 2;
@@ -301,23 +404,7 @@ impl<'a> Table<'a> {
     /// [`Error::InvalidInput`] if the input function or the output gives another number of
     /// cells than there are columns.
     pub fn format_row(&self, m: &MemberResult<RowOutput>, out: &mut Vec<u8>) -> Result<()> {
-        let mut cells = Vec::with_capacity(self.inputs.len());
-        if let Some(f) = &self.input_cells {
-            f(m.index, &mut cells);
-        }
-        if cells.len() != self.inputs.len() {
-            return Err(Error::InvalidInput(format!(
-                "the table's input function gave {} cells for member {}, for {} input columns",
-                cells.len(),
-                m.index,
-                self.inputs.len()
-            )));
-        }
-        write!(out, "{}", m.index).map_err(io_err("a row"))?;
-        for c in &cells {
-            out.push(b',');
-            push_cell(out, c);
-        }
+        self.push_inputs(m.index, out)?;
         let status = Self::status_of(m);
         out.push(b',');
         out.extend_from_slice(status.word().as_bytes());
@@ -594,17 +681,97 @@ impl Staged {
     }
 }
 
-/// Lowercase hex.
-fn hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
-}
-
 /// The first line of part k of n (0-based k).
 fn part_head(k: usize, n: usize, members: usize, description: &str) -> String {
     format!(
         "# ecr ensemble part {}/{n} of {members} members: {description}\n",
         k + 1
     )
+}
+
+/// The first line of the table of the whole ensemble.
+fn table_head(members: usize, description: &str) -> String {
+    format!("# ecr ensemble table of {members} members: {description}\n")
+}
+
+/// What a table's first line (without its line break) says: the part (0-based k of n; `None`
+/// for the table of the whole ensemble), the member count and the description.
+fn parse_head(line: &str) -> Option<(Option<(usize, usize)>, usize, String)> {
+    let rest = line.strip_prefix("# ecr ensemble ")?;
+    let (part, rest) = match rest.strip_prefix("table of ") {
+        Some(rest) => (None, rest),
+        None => {
+            let (kn, rest) = rest.strip_prefix("part ")?.split_once(" of ")?;
+            let (k, n) = kn.split_once('/')?;
+            let (k, n) = (k.parse::<usize>().ok()?, n.parse::<usize>().ok()?);
+            if k == 0 || k > n {
+                return None;
+            }
+            (Some((k - 1, n)), rest)
+        }
+    };
+    let (members, description) = rest.split_once(" members: ")?;
+    Some((part, members.parse().ok()?, description.to_string()))
+}
+
+/// The preamble of a table as read from `r` (first line, fingerprint lines, header row): its
+/// bytes, the part its first line names and the fingerprint (members and description from
+/// the first line, columns from the header). `None` if the file ends before the header row
+/// is complete or its first line is not a table's.
+#[allow(clippy::type_complexity)]
+fn read_preamble(
+    r: &mut impl BufRead,
+) -> io::Result<Option<(Vec<u8>, Option<(usize, usize)>, Fingerprint)>> {
+    let mut bytes = Vec::new();
+    let mut line = Vec::new();
+    if !next_line(r, &mut line)? {
+        return Ok(None);
+    }
+    bytes.extend_from_slice(&line);
+    let Some((part, members, description)) = std::str::from_utf8(&line)
+        .ok()
+        .and_then(|l| parse_head(l.strip_suffix('\n')?))
+    else {
+        return Ok(None);
+    };
+    let mut fields = vec![
+        ("members".to_string(), members.to_string()),
+        ("description".to_string(), description),
+    ];
+    loop {
+        if !next_line(r, &mut line)? {
+            return Ok(None);
+        }
+        bytes.extend_from_slice(&line);
+        let Ok(text) = std::str::from_utf8(&line[..line.len() - 1]) else {
+            return Ok(None);
+        };
+        if text.starts_with('#') {
+            match Fingerprint::parse_line(text) {
+                Some(field) => fields.push(field),
+                None => return Ok(None),
+            }
+        } else {
+            fields.push(("columns".to_string(), text.to_string()));
+            break;
+        }
+    }
+    Ok(Some((bytes, part, Fingerprint::new(fields))))
+}
+
+/// Reads a line of at most 1 MiB into `line` (cleared first): whether it is a whole line.
+fn next_line(r: &mut impl BufRead, line: &mut Vec<u8>) -> io::Result<bool> {
+    line.clear();
+    let len = Read::take(&mut *r, 1 << 20).read_until(b'\n', line)?;
+    Ok(len > 0 && line.ends_with(b"\n"))
+}
+
+/// What a part says it is, for messages: `table` or `part K/N`.
+fn part_name(part: Option<(usize, usize)>) -> String {
+    match part {
+        None => "table".to_string(),
+        Some((k, n)) => format!("part {}/{n}", k + 1),
+    }
 }
 
 /// The last line of part k of n (0-based k).
@@ -641,29 +808,33 @@ impl std::fmt::Debug for TableWriter {
 }
 
 impl TableWriter {
-    /// The writer of `table` for `members` members at `path` (`part`: k of n, for a part
-    /// file), continuing an unfinished file of the same table with `resume`.
+    /// The writer of `table` at `path` for the run whose [fingerprint](super::fingerprint)
+    /// is `fingerprint` ([`Ensemble::fingerprint`](super::Ensemble::fingerprint): its
+    /// member count is the table's), `part` k of n for a part file, continuing an unfinished
+    /// file of the same run with `resume`.
     ///
     /// # Errors
     /// A path that cannot be written, a table that would not fit on its filesystem
-    /// (estimated at [`Table::estimated_row_bytes`] a row), a file another run is writing.
+    /// (estimated at [`Table::estimated_row_bytes`] a row), a file another run is writing;
+    /// with `resume`, an unfinished file of another run (one line naming the first field of
+    /// the fingerprint that differs; the file is left as it was).
     pub fn open(
         path: &Path,
         table: &Table<'_>,
-        members: usize,
+        fingerprint: &Fingerprint,
         part: Option<(usize, usize)>,
         resume: bool,
     ) -> Result<TableWriter> {
+        let members = fingerprint.members().ok_or_else(|| {
+            Error::InvalidInput("a fingerprint without the member count".to_string())
+        })?;
         let (k, n) = part.unwrap_or((0, 1));
         let expected = part_len(members, k, n);
         let head = match part {
             Some((k, n)) => part_head(k, n, members, &table.description),
-            None => format!(
-                "# ecr ensemble table of {members} members: {}\n",
-                table.description
-            ),
+            None => table_head(members, &table.description),
         };
-        let header = table.header();
+        let preamble = head + &fingerprint.lines() + &table.header();
         let need = expected as u128 * table.estimated_row_bytes() as u128;
         let dir = follow(path)?
             .parent()
@@ -687,7 +858,9 @@ impl TableWriter {
                 )));
             }
         }
-        let (staged, existing) = Staged::open(path, &(head.clone() + &header), resume)?;
+        // One unfinished file per table or part at `path`, whatever the run: a resume finds
+        // it and refuses it if it is another run's.
+        let (staged, existing) = Staged::open(path, &part_name(part), resume)?;
         let mut writer = TableWriter {
             staged,
             part,
@@ -701,9 +874,8 @@ impl TableWriter {
             last_flush: Instant::now(),
             complete: false,
         };
-        let status_field = 1 + table.inputs.len();
         let kept_bytes = if resume {
-            writer.read_kept(existing, &head, &header, status_field)?
+            writer.read_kept(existing, &preamble, table, fingerprint)?
         } else {
             0
         };
@@ -714,49 +886,63 @@ impl TableWriter {
         f.set_len(kept_bytes).map_err(io)?;
         f.seek(SeekFrom::Start(kept_bytes)).map_err(io)?;
         if kept_bytes == 0 {
-            if part.is_some() {
-                writer
-                    .staged
-                    .file
-                    .write_all(head.as_bytes())
-                    .map_err(writer.staged.io())?;
-            }
             writer
                 .staged
                 .file
-                .write_all(header.as_bytes())
+                .write_all(preamble.as_bytes())
                 .map_err(writer.staged.io())?;
         }
         Ok(writer)
     }
 
-    /// Reads the rows of an unfinished file: the bytes to keep (0: start over).
+    /// Reads the rows of an unfinished file: the bytes to keep (0: start over). The rows kept
+    /// are those before the first that does not read as the table writes it
+    /// ([`Table::check_row`]: another member, another number of fields, a cell that is not
+    /// a number, …); that one and those after it are solved again.
+    ///
+    /// # Errors
+    /// A file of another run: [`Error::InvalidInput`] naming the first field of the
+    /// fingerprint that differs.
     fn read_kept(
         &mut self,
         file: File,
-        head: &str,
-        header: &str,
-        status_field: usize,
+        preamble: &str,
+        table: &Table<'_>,
+        fingerprint: &Fingerprint,
     ) -> Result<u64> {
         let (k, n) = self.part.unwrap_or((0, 1));
         let mut r = BufReader::new(file);
-        let mut line = Vec::new();
-        let mut offset = 0u64;
-        let next = |r: &mut BufReader<File>, line: &mut Vec<u8>| -> bool {
-            line.clear();
-            matches!(r.read_until(b'\n', line), Ok(len) if len > 0 && line.ends_with(b"\n"))
+        let read_err = |e: io::Error| {
+            Error::Io(format!(
+                "cannot read the unfinished table '{}': {e}",
+                self.staged.stage.display()
+            ))
         };
-        if self.part.is_some() {
-            if !next(&mut r, &mut line) || line != head.as_bytes() {
-                return Ok(0);
-            }
-            offset += line.len() as u64;
+        let Some((bytes, part, theirs)) = read_preamble(&mut r).map_err(read_err)? else {
+            // Empty, or cut before its header row was complete: nothing to keep.
+            return Ok(0);
+        };
+        let refuse = |field: &str, there: &str, here: &str| {
+            Error::InvalidInput(format!(
+                "cannot resume '{}': its unfinished table is of another run ({field}: {there} \
+                 there, {here} in this run); run without resume to start over",
+                self.staged.shown
+            ))
+        };
+        if part != self.part {
+            return Err(refuse("part", &part_name(part), &part_name(self.part)));
         }
-        if !next(&mut r, &mut line) || line != header.as_bytes() {
+        if let Some(d) = fingerprint.difference(&theirs) {
+            return Err(refuse(&d.field, &d.second, &d.first));
+        }
+        if bytes != preamble.as_bytes() {
+            // The same run written otherwise (by hand?): start over.
             return Ok(0);
         }
-        offset += line.len() as u64;
-        while next(&mut r, &mut line) {
+        let mut offset = bytes.len() as u64;
+        let mut line = Vec::new();
+        let mut start = Vec::new();
+        while next_line(&mut r, &mut line).unwrap_or(false) {
             if self.rows == self.expected {
                 let end = part_end(k, n, self.rows, &hex(&self.digest.clone().finalize()));
                 if self.part.is_some() && line == end.as_bytes() {
@@ -765,17 +951,8 @@ impl TableWriter {
                 }
                 break;
             }
-            let Ok(text) = std::str::from_utf8(&line) else {
-                break;
-            };
             let index = k + self.rows * n;
-            let mut fields = text.split(',');
-            let ok_index = fields.next().and_then(|f| f.parse::<usize>().ok()) == Some(index);
-            let status = text
-                .split(',')
-                .nth(status_field)
-                .and_then(Status::from_word);
-            let (true, Some(status), false) = (ok_index, status, text.contains('\0')) else {
+            let Some(status) = table.check_row(index, &line, &mut start) else {
                 break;
             };
             self.count(status);
@@ -895,11 +1072,13 @@ fn gb(bytes: u128) -> String {
 /// A part file being merged.
 struct Part {
     shown: String,
+    path: PathBuf,
     k: usize,
     n: usize,
     members: usize,
-    description: String,
-    header: Vec<u8>,
+    /// The fingerprint lines and the header row, as the file has them.
+    body: Vec<u8>,
+    fingerprint: Fingerprint,
     rows: usize,
     digest: String,
     reader: BufReader<File>,
@@ -908,81 +1087,95 @@ struct Part {
 
 fn open_part(path: &Path) -> Result<Part> {
     let shown = path.display().to_string();
-    let file =
-        File::open(path).map_err(|e| Error::Io(format!("cannot read part '{shown}': {e}")))?;
-    let len = file
-        .metadata()
-        .map_err(|e| Error::Io(format!("cannot read part '{shown}': {e}")))?
-        .len();
+    let read_err = |e: io::Error| Error::Io(format!("cannot read part '{shown}': {e}"));
+    let file = File::open(path).map_err(read_err)?;
+    let len = file.metadata().map_err(read_err)?.len();
     let mut reader = BufReader::new(file);
     let not_a_part = || {
         Error::InvalidInput(format!(
             "'{shown}' is not a part written by an ensemble's part (ecr ensemble --shard K/N)"
         ))
     };
-    let mut first = Vec::new();
-    let _ = (&mut reader).take(1 << 16).read_until(b'\n', &mut first);
-    let head = std::str::from_utf8(&first)
+    let (bytes, part, fingerprint) = read_preamble(&mut reader)
         .ok()
-        .and_then(|h| h.strip_prefix("# ecr ensemble part "))
-        .and_then(|h| h.strip_suffix('\n'))
+        .flatten()
         .ok_or_else(not_a_part)?;
-    let (kn, rest) = head.split_once(" of ").ok_or_else(not_a_part)?;
-    let (members, description) = rest.split_once(" members: ").ok_or_else(not_a_part)?;
-    let (k, n) = kn.split_once('/').ok_or_else(not_a_part)?;
-    let (Ok(k), Ok(n), Ok(members)) = (
-        k.parse::<usize>(),
-        n.parse::<usize>(),
-        members.parse::<usize>(),
-    ) else {
+    let Some((k, n)) = part else {
         return Err(not_a_part());
     };
-    if k == 0 || k > n {
-        return Err(not_a_part());
-    }
-    let mut header = Vec::new();
-    let _ = (&mut reader).take(1 << 20).read_until(b'\n', &mut header);
+    let members = fingerprint.members().ok_or_else(not_a_part)?;
+    let first = bytes.iter().position(|&b| b == b'\n').map_or(0, |p| p + 1);
+    let body = bytes[first..].to_vec();
     // The end line, from the file's last bytes.
-    let rows = part_len(members, k - 1, n);
+    let rows = part_len(members, k, n);
     let unfinished = || {
         Error::InvalidInput(format!(
-            "part '{shown}' ({k}/{n}) does not end with '# end of part {k}/{n}: {rows} rows, \
-             sha256 …': its shard was killed or has not finished; run it again"
+            "part '{shown}' ({}/{n}) does not end with '# end of part {}/{n}: {rows} rows, \
+             sha256 …': its shard was killed or has not finished; run it again",
+            k + 1,
+            k + 1
         ))
     };
     let mut tail = Vec::new();
     {
-        let mut f =
-            File::open(path).map_err(|e| Error::Io(format!("cannot read part '{shown}': {e}")))?;
+        let mut f = File::open(path).map_err(read_err)?;
         f.seek(SeekFrom::Start(len.saturating_sub(256)))
             .and_then(|_| f.read_to_end(&mut tail))
-            .map_err(|e| Error::Io(format!("cannot read part '{shown}': {e}")))?;
+            .map_err(read_err)?;
     }
     let tail = String::from_utf8_lossy(&tail);
     let last = tail
         .strip_suffix('\n')
         .and_then(|t| t.rsplit('\n').next())
         .ok_or_else(unfinished)?;
-    let prefix = format!("# end of part {k}/{n}: {rows} rows, sha256 ");
+    let prefix = format!("# end of part {}/{n}: {rows} rows, sha256 ", k + 1);
     let digest = last.strip_prefix(&prefix).ok_or_else(unfinished)?;
     if digest.len() != 64 || !digest.bytes().all(|b| b.is_ascii_hexdigit()) {
         return Err(unfinished());
     }
-    if header.is_empty() || !header.ends_with(b"\n") || header.starts_with(b"#") {
-        return Err(unfinished());
-    }
     Ok(Part {
         shown,
-        k: k - 1,
+        path: path.to_path_buf(),
+        k,
         n,
         members,
-        description: description.to_string(),
-        header,
+        body,
+        fingerprint,
         rows,
         digest: digest.to_string(),
         reader,
         hasher: Sha256::new(),
     })
+}
+
+/// Whether `a` and `b` name the same file: the same path once symlinks and `..` are resolved
+/// (for `b`, which need not exist, its directory), or on Unix the same device and inode.
+fn same_file(a: &Path, b: &Path) -> bool {
+    let Ok(a) = fs::canonicalize(a) else {
+        return false;
+    };
+    let b = match follow(b) {
+        Ok(b) => b,
+        Err(_) => return false,
+    };
+    let resolved = fs::canonicalize(&b).ok().or_else(|| {
+        let parent = match b.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => Path::new("."),
+        };
+        Some(fs::canonicalize(parent).ok()?.join(b.file_name()?))
+    });
+    if resolved.as_deref() == Some(a.as_path()) {
+        return true;
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        if let (Ok(ma), Ok(mb)) = (fs::metadata(&a), fs::metadata(&b)) {
+            return ma.dev() == mb.dev() && ma.ino() == mb.ino();
+        }
+    }
+    false
 }
 
 /// What [`merge_parts`] wrote.
@@ -1000,9 +1193,11 @@ pub struct MergeReport {
 ///
 /// # Errors
 /// One line ([`Error::InvalidInput`]) for parts that are missing, given twice, of different
-/// ensembles, without their end line (killed or unfinished), whose rows are not their members
-/// in order or do not match the digest of their end line (changed after they were written);
-/// `out` is left as it was then.
+/// runs (naming the first field of their [fingerprints](super::fingerprint) that differs),
+/// without their end line (killed or unfinished), whose rows are not their members in order
+/// or do not match the digest of their end line (changed after they were written), and for
+/// an `out` that is one of the parts (the merge never writes over its input); `out` is left
+/// as it was then.
 pub fn merge_parts<P: AsRef<Path>>(parts: &[P], out: &Path) -> Result<MergeReport> {
     if parts.is_empty() {
         return Err(Error::InvalidInput("no parts to merge".into()));
@@ -1011,27 +1206,37 @@ pub fn merge_parts<P: AsRef<Path>>(parts: &[P], out: &Path) -> Result<MergeRepor
         .iter()
         .map(|p| open_part(p.as_ref()))
         .collect::<Result<Vec<_>>>()?;
+    if let Some(p) = parts.iter().find(|p| same_file(&p.path, out)) {
+        return Err(Error::InvalidInput(format!(
+            "the merged table '{}' would replace its part '{}': write it to another file",
+            out.display(),
+            p.shown
+        )));
+    }
     for p in &parts[1..] {
         let f = &parts[0];
-        let same = p.n == f.n
-            && p.members == f.members
-            && p.description == f.description
-            && p.header == f.header;
-        if !same {
-            return Err(Error::InvalidInput(format!(
-                "'{}' and '{}' are parts of different ensembles ({}/{} of {} members: {}; \
-                 {}/{} of {} members: {})",
-                f.shown,
-                p.shown,
-                f.k + 1,
-                f.n,
-                f.members,
-                f.description,
-                p.k + 1,
-                p.n,
-                p.members,
-                p.description
-            )));
+        let differ = |field: &str, a: &str, b: &str| {
+            Error::InvalidInput(format!(
+                "'{}' and '{}' are parts of different runs ({field}: {a} in '{}', {b} in '{}')",
+                f.shown, p.shown, f.shown, p.shown
+            ))
+        };
+        if let Some(d) = f.fingerprint.difference(&p.fingerprint) {
+            return Err(differ(&d.field, &d.first, &d.second));
+        }
+        if p.n != f.n {
+            return Err(differ(
+                "parts",
+                &format!("{}/{}", f.k + 1, f.n),
+                &format!("{}/{}", p.k + 1, p.n),
+            ));
+        }
+        if p.body != f.body {
+            return Err(differ(
+                "fingerprint lines",
+                "as written",
+                "written otherwise",
+            ));
         }
     }
     let n = parts[0].n;
@@ -1058,15 +1263,17 @@ pub fn merge_parts<P: AsRef<Path>>(parts: &[P], out: &Path) -> Result<MergeRepor
         )));
     }
     let members = parts[0].members;
-    let header = parts[0].header.clone();
-    let identity = format!(
-        "merge of {n} parts of {members} members: {}",
-        parts[0].description
-    );
+    let description = parts[0]
+        .fingerprint
+        .get("description")
+        .unwrap_or_default()
+        .to_string();
+    let preamble = [table_head(members, &description).as_bytes(), &parts[0].body].concat();
+    let identity = format!("merge of {n} parts of {members} members: {description}");
     let (mut staged, _) = Staged::open(out, &identity, false)?;
     staged.discard = true;
     staged.file.get_mut().set_len(0).map_err(staged.io())?;
-    staged.file.write_all(&header).map_err(staged.io())?;
+    staged.file.write_all(&preamble).map_err(staged.io())?;
     let mut line = Vec::new();
     for i in 0..members {
         let p = &mut parts[i % n];
