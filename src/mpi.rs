@@ -212,6 +212,8 @@ where
     let (rank, size) = (world.rank, world.size);
     let len = ensemble.len();
     let opened = (rank == 0).then(|| {
+        // The cheap refusal first: the fingerprint formats every member's input cells.
+        TableWriter::check_fits(path, table, len, None)?;
         let fingerprint = ensemble.fingerprint(options, table)?;
         TableWriter::open(path, table, &fingerprint, None, control_resume(control))
     });

@@ -644,6 +644,8 @@ where
         options.validate()?;
         let (k, n) = check_part(control.part)?;
         let part = control.part != (0, 1) || table.is_part();
+        // The cheap refusal first: the fingerprint formats every member's input cells.
+        table::TableWriter::check_fits(path, table, self.len, part.then_some((k, n)))?;
         let fingerprint = self.fingerprint(options, table)?;
         let mut writer = table::TableWriter::open(
             path,

@@ -4,7 +4,9 @@
 //!
 //! # The table (CSV)
 //!
-//! A header row, then one row per member in member order: `member`, the [input
+//! A first line `# ecr ensemble table of M members: DESCRIPTION`, the run's
+//! [fingerprint](super::fingerprint) (`# NAME: VALUE` lines), a header row, then one row per
+//! member in member order: `member`, the [input
 //! columns](Table::inputs) (the member's parameters, as the table's function gives them),
 //! `status` (`verified`, `ok` for a fixed method that completed, `unverified`, `failed`,
 //! `panicked`), the output columns (the cells the output function gives; empty for a member
@@ -17,25 +19,30 @@
 //!
 //! # Unfinished tables and resume
 //!
-//! The rows go to `.NAME.ecr-partial-<hash>` beside `NAME` (the hash names the ensemble: its
-//! description, columns and part), written to the file at least every 0.1 s
+//! The rows go to `.NAME.ecr-partial-<hash>` beside `NAME` (the hash names the table or the
+//! part), written to the file at least every 0.1 s
 //! ([`FLUSH_EVERY`]: what a killed process leaves), synced (`fsync`) at least once a second
 //! and when the run stops, and locked (`flock`) while a run writes it. When every row is there
 //! the file is synced and renamed to `NAME` in one step (the directory synced after): `NAME`
 //! holds the previous file or the complete new one, never a part, never a mix of two runs. A
-//! run with [`Control::resume`](super::Control::resume) reads the unfinished file of the same
-//! ensemble, keeps its complete rows (those that are the next member's, whole lines; a row
-//! cut short by the kill is dropped) and solves the members after them; a run without it
-//! starts over (removing the unfinished files of `NAME` that no run holds).
+//! run with [`Control::resume`](super::Control::resume) reads the unfinished file at `NAME`:
+//! if its fingerprint is another run's, it refuses in one line naming the first field that
+//! differs and writes nothing; else it keeps the rows that read as the table writes them
+//! (whole lines, the next member's index and input cells, as many fields as the header, a
+//! known status, every number cell a number written as the table writes numbers), up to the
+//! first that does not (cut short by the kill, or changed), and solves the members from
+//! there on. A run without it starts over (removing the unfinished files of `NAME` that no
+//! run holds).
 //!
 //! # Parts and merge
 //!
 //! A part (part k of n, [`Control::part`](super::Control::part)) starts with the line `#
-//! ecr ensemble part K/N of M members: DESCRIPTION` (K = k + 1), then the header and its
-//! rows, and ends with `# end of part K/N: R rows, sha256 HEX`, the SHA-256 digest of its
-//! rows' bytes. [`merge_parts`] checks every part's first line, header, row indices, count
-//! and digest while it copies the rows in member order, and refuses parts that are missing,
-//! given twice, of another ensemble, unfinished or changed.
+//! ecr ensemble part K/N of M members: DESCRIPTION` (K = k + 1), then the fingerprint, the
+//! header and its rows, and ends with `# end of part K/N: R rows, sha256 HEX`, the SHA-256
+//! digest of its rows' bytes. [`merge_parts`] checks every part's first line, fingerprint,
+//! header, row indices, count and digest while it copies the rows in member order, and
+//! refuses parts that are missing, given twice, of another run (naming the field of the
+//! fingerprint that differs), unfinished or changed, and an output that is one of its parts.
 
 use std::fs::{self, File, OpenOptions};
 use std::io::{self, BufRead, BufReader, BufWriter, Read, Seek, SeekFrom, Write};
@@ -835,29 +842,7 @@ impl TableWriter {
             None => table_head(members, &table.description),
         };
         let preamble = head + &fingerprint.lines() + &table.header();
-        let need = expected as u128 * table.estimated_row_bytes() as u128;
-        let dir = follow(path)?
-            .parent()
-            .map(|p| {
-                if p.as_os_str().is_empty() {
-                    PathBuf::from(".")
-                } else {
-                    p.to_path_buf()
-                }
-            })
-            .unwrap_or_else(|| PathBuf::from("."));
-        if let Some(free) = free_bytes(&dir) {
-            if need > free {
-                return Err(Error::InvalidInput(format!(
-                    "the table of {expected} members needs about {} (estimate, {} bytes a \
-                     row), more than the {} free for '{}'",
-                    gb(need),
-                    table.estimated_row_bytes(),
-                    gb(free),
-                    path.display()
-                )));
-            }
-        }
+        Self::check_fits(path, table, members, part)?;
         // One unfinished file per table or part at `path`, whatever the run: a resume finds
         // it and refuses it if it is another run's.
         let (staged, existing) = Staged::open(path, &part_name(part), resume)?;
@@ -893,6 +878,47 @@ impl TableWriter {
                 .map_err(writer.staged.io())?;
         }
         Ok(writer)
+    }
+
+    /// Whether the table of `members` members (`part`: k of n) fits on the filesystem of
+    /// `path`, estimated at [`Table::estimated_row_bytes`] a row: checked before the run's
+    /// [fingerprint](super::fingerprint) is made (which formats every member's input cells).
+    ///
+    /// # Errors
+    /// [`Error::InvalidInput`] for a table larger than the free space; a path whose symlinks
+    /// cannot be followed.
+    pub fn check_fits(
+        path: &Path,
+        table: &Table<'_>,
+        members: usize,
+        part: Option<(usize, usize)>,
+    ) -> Result<()> {
+        let (k, n) = part.unwrap_or((0, 1));
+        let expected = part_len(members, k, n);
+        let need = expected as u128 * table.estimated_row_bytes() as u128;
+        let dir = follow(path)?
+            .parent()
+            .map(|p| {
+                if p.as_os_str().is_empty() {
+                    PathBuf::from(".")
+                } else {
+                    p.to_path_buf()
+                }
+            })
+            .unwrap_or_else(|| PathBuf::from("."));
+        if let Some(free) = free_bytes(&dir) {
+            if need > free {
+                return Err(Error::InvalidInput(format!(
+                    "the table of {expected} members needs about {} (estimate, {} bytes a \
+                     row), more than the {} free for '{}'",
+                    gb(need),
+                    table.estimated_row_bytes(),
+                    gb(free),
+                    path.display()
+                )));
+            }
+        }
+        Ok(())
     }
 
     /// Reads the rows of an unfinished file: the bytes to keep (0: start over). The rows kept
