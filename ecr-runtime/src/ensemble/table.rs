@@ -701,9 +701,12 @@ fn table_head(members: usize, description: &str) -> String {
     format!("# ecr ensemble table of {members} members: {description}\n")
 }
 
-/// What a table's first line (without its line break) says: the part (0-based k of n; `None`
-/// for the table of the whole ensemble), the member count and the description.
-fn parse_head(line: &str) -> Option<(Option<(usize, usize)>, usize, String)> {
+/// Part k of n (0-based k) of a file, `None` for the table of the whole ensemble.
+type PartOf = Option<(usize, usize)>;
+
+/// What a table's first line (without its line break) says: the part, the member count and
+/// the description.
+fn parse_head(line: &str) -> Option<(PartOf, usize, String)> {
     let rest = line.strip_prefix("# ecr ensemble ")?;
     let (part, rest) = match rest.strip_prefix("table of ") {
         Some(rest) => (None, rest),
@@ -721,14 +724,20 @@ fn parse_head(line: &str) -> Option<(Option<(usize, usize)>, usize, String)> {
     Some((part, members.parse().ok()?, description.to_string()))
 }
 
-/// The preamble of a table as read from `r` (first line, fingerprint lines, header row): its
-/// bytes, the part its first line names and the fingerprint (members and description from
-/// the first line, columns from the header). `None` if the file ends before the header row
-/// is complete or its first line is not a table's.
-#[allow(clippy::type_complexity)]
-fn read_preamble(
-    r: &mut impl BufRead,
-) -> io::Result<Option<(Vec<u8>, Option<(usize, usize)>, Fingerprint)>> {
+/// The preamble of a table (first line, fingerprint lines, header row) as a file has it.
+struct Preamble {
+    /// Its bytes.
+    bytes: Vec<u8>,
+    /// The part its first line names.
+    part: PartOf,
+    /// The fingerprint: members and description from the first line, columns from the
+    /// header row.
+    fingerprint: Fingerprint,
+}
+
+/// The preamble of a table as read from `r`; `None` if the file ends before the header row is
+/// complete or its first line is not a table's.
+fn read_preamble(r: &mut impl BufRead) -> io::Result<Option<Preamble>> {
     let mut bytes = Vec::new();
     let mut line = Vec::new();
     if !next_line(r, &mut line)? {
@@ -763,7 +772,11 @@ fn read_preamble(
             break;
         }
     }
-    Ok(Some((bytes, part, Fingerprint::new(fields))))
+    Ok(Some(Preamble {
+        bytes,
+        part,
+        fingerprint: Fingerprint::new(fields),
+    }))
 }
 
 /// Reads a line of at most 1 MiB into `line` (cleared first): whether it is a whole line.
@@ -944,7 +957,12 @@ impl TableWriter {
                 self.staged.stage.display()
             ))
         };
-        let Some((bytes, part, theirs)) = read_preamble(&mut r).map_err(read_err)? else {
+        let Some(Preamble {
+            bytes,
+            part,
+            fingerprint: theirs,
+        }) = read_preamble(&mut r).map_err(read_err)?
+        else {
             // Empty, or cut before its header row was complete: nothing to keep.
             return Ok(0);
         };
@@ -1122,7 +1140,11 @@ fn open_part(path: &Path) -> Result<Part> {
             "'{shown}' is not a part written by an ensemble's part (ecr ensemble --shard K/N)"
         ))
     };
-    let (bytes, part, fingerprint) = read_preamble(&mut reader)
+    let Preamble {
+        bytes,
+        part,
+        fingerprint,
+    } = read_preamble(&mut reader)
         .ok()
         .flatten()
         .ok_or_else(not_a_part)?;
