@@ -214,7 +214,7 @@ impl<'a> Control<'a> {
     /// only the members after them are solved. The table is then the one an uninterrupted
     /// run writes, byte for byte (its CPU column aside). Without an unfinished table it
     /// starts from the first member. An unfinished table of another run (another
-    /// [fingerprint](fingerprint): options, span, inputs, member count, columns, key,
+    /// [fingerprint]: options, span, inputs, member count, columns, key,
     /// description, …) is refused in one line naming the field that differs, and left as it
     /// is; a row that does not read as the table writes it is solved again, with those
     /// after it.
@@ -431,7 +431,7 @@ where
         (self.make)(&self.template, index)
     }
 
-    /// The [fingerprint](fingerprint) of a run of this ensemble with `options` into
+    /// The [fingerprint] of a run of this ensemble with `options` into
     /// `table`: what [`write_table`](Self::write_table) writes at the top of the table and
     /// a resume or a merge compares. Makes member 0 (for its span and y₀) and formats every
     /// member's input cells (for their digest).
