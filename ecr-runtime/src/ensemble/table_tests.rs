@@ -3,10 +3,14 @@
 //! again, a merge onto one of its own parts refused.
 
 use super::*;
+use crate::error::Result;
 use crate::operator::Dense;
+use crate::solve::{Options, Problem, Solution};
 use crate::system::Semilinear;
 use nalgebra::DMatrix;
 use std::fs;
+use std::ops::ControlFlow;
+use std::path::Path;
 use std::path::PathBuf;
 
 /// What a run is made of: each field changes what the rows hold.
