@@ -363,7 +363,7 @@ impl<'a> Table<'a> {
     /// The status of member `index`'s row `line` (with its line break) if the row reads as
     /// the table writes it: its index and input cells those of the member, as many fields as
     /// the header, a known status, every output cell empty or a number written as the table
-    /// writes numbers (a count of a column of counts), and the CPU time a number.
+    /// writes numbers (a count, or an f64 as `{:?}` writes it), and the CPU time a number.
     fn check_row(&self, index: usize, line: &[u8], start: &mut Vec<u8>) -> Option<Status> {
         let text = std::str::from_utf8(line).ok()?.strip_suffix('\n')?;
         if text.contains(['\0', '\r']) {
@@ -380,13 +380,14 @@ impl<'a> Table<'a> {
         }
         let status = Status::from_word(&cells[0])?;
         let outputs = &cells[1..1 + self.outputs.len()];
-        let numbers_ok = self.outputs.iter().zip(outputs).all(|(c, cell)| {
+        // A cell as `push_cell` writes it: empty, a count, or an f64 as `{:?}` writes it
+        // (whatever the column's kind: an output function may give either).
+        let written = |cell: &String| {
             cell.is_empty()
-                || match c.kind {
-                    Kind::F64 => cell.parse::<f64>().is_ok_and(|x| format!("{x:?}") == *cell),
-                    Kind::U64 => cell.parse::<u64>().is_ok_and(|n| n.to_string() == *cell),
-                }
-        });
+                || cell.parse::<u64>().is_ok_and(|n| n.to_string() == *cell)
+                || cell.parse::<f64>().is_ok_and(|x| format!("{x:?}") == *cell)
+        };
+        let numbers_ok = outputs.iter().all(written);
         let cpu_ok = !self.cpu
             || cells
                 .last()
