@@ -274,7 +274,7 @@ where
             let comm = &comm_shared.0;
             let mut queues: Vec<Queue> = (0..size).map(|_| Queue::default()).collect();
             for i in from..len {
-                let r = i % size;
+                let (r, _) = ecr_runtime::ensemble::part_of(i, size);
                 let (row, status) = if r == 0 {
                     rx.recv().map_err(|_| {
                         Error::InvalidInput(format!("rank 0 stopped before member {i}"))

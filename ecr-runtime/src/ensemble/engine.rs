@@ -14,7 +14,7 @@ use rayon::prelude::*;
 use super::plan::{check_part, first_of_part};
 use super::{
     Cell, Control, Ensemble, EnsembleSolution, Fingerprint, MemberError, MemberResult, Progress,
-    Streamed, Summary, SummaryResult, Table, TableReport, fingerprint, part_len, table,
+    Streamed, Summary, SummaryResult, Table, TableReport, fingerprint, member_of, part_len, table,
 };
 use crate::error::{Error, Result};
 use crate::operator::LinearOperator;
@@ -152,7 +152,7 @@ where
         })?;
         for j in first + members.len()..total {
             members.push(MemberResult {
-                index: k + j * n,
+                index: member_of(k, n, j),
                 outcome: Err(MemberError::NotRun),
                 cpu: Duration::ZERO,
             });
@@ -341,7 +341,7 @@ where
             (j..end)
                 .into_par_iter()
                 .map(|j| {
-                    let index = k + j * n;
+                    let index = member_of(k, n, j);
                     if stop.load(Ordering::Relaxed) {
                         return (
                             MemberResult {

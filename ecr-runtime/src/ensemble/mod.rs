@@ -86,7 +86,7 @@ use std::time::Duration;
 
 pub use fingerprint::Fingerprint;
 pub use npy::table_to_npy;
-pub use plan::{Control, Progress, part_len};
+pub use plan::{Control, Progress, member_of, part_len, part_of};
 pub use summary::{Stat, Summary};
 pub use table::{Cell, Column, Kind, Table, TableReport, merge_parts};
 

@@ -126,6 +126,18 @@ pub struct Progress {
     pub failed: usize,
 }
 
+/// Member `j` of part k of n (0-based k, j): k + j n.
+pub fn member_of(k: usize, n: usize, j: usize) -> usize {
+    k + j * n
+}
+
+/// The part of n (0-based) that holds member `i`, and its position in that part: (i mod n,
+/// i / n). The one split of the members that the threads, the parts of a job array and the
+/// ranks of MPI share (see [`member_of`]).
+pub fn part_of(i: usize, n: usize) -> (usize, usize) {
+    (i % n, i / n)
+}
+
 /// The members of part k of n (0-based k) of `len` members: k, k + n, k + 2n, … below `len`.
 pub fn part_len(len: usize, k: usize, n: usize) -> usize {
     if k < len { (len - k).div_ceil(n) } else { 0 }

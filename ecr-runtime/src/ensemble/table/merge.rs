@@ -11,7 +11,7 @@ use super::hex;
 use super::staged::{Staged, follow};
 use super::writer::{Preamble, part_end, read_preamble, table_head};
 use crate::ensemble::fingerprint::Fingerprint;
-use crate::ensemble::part_len;
+use crate::ensemble::{part_len, part_of};
 use crate::error::{Error, Result};
 
 /// A part file being merged.
@@ -225,8 +225,8 @@ pub fn merge_parts<P: AsRef<Path>>(parts: &[P], out: &Path) -> Result<MergeRepor
     staged.file.write_all(&preamble).map_err(staged.io())?;
     let mut line = Vec::new();
     for i in 0..members {
-        let p = &mut parts[i % n];
-        let j = i / n;
+        let (k, j) = part_of(i, n);
+        let p = &mut parts[k];
         line.clear();
         let read = p.reader.read_until(b'\n', &mut line);
         let index = std::str::from_utf8(&line)

@@ -12,7 +12,7 @@ use sha2::{Digest, Sha256};
 use super::staged::{Staged, follow, free_bytes};
 use super::{FLUSH_EVERY, SYNC_EVERY, Status, Table, TableReport, hex};
 use crate::ensemble::fingerprint::Fingerprint;
-use crate::ensemble::part_len;
+use crate::ensemble::{member_of, part_len};
 use crate::error::{Error, Result};
 use crate::solve::Stats;
 
@@ -323,7 +323,7 @@ impl TableWriter {
                 }
                 break;
             }
-            let index = k + self.rows * n;
+            let index = member_of(k, n, self.rows);
             let Some(status) = table.check_row(index, &line, &mut start) else {
                 break;
             };
@@ -359,7 +359,7 @@ impl TableWriter {
         if self.rows >= self.expected {
             return self.members;
         }
-        k + self.rows * n
+        member_of(k, n, self.rows)
     }
 
     /// Appends a row (its bytes with the line break, as [`Table::format_row`] makes them) of
