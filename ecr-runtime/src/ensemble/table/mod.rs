@@ -60,6 +60,7 @@ use crate::solve::Stats;
 
 pub use merge::{MergeReport, merge_parts};
 pub(crate) use staged::Staged;
+pub use staged::{PutError, put_in_place, remove_stale};
 pub use writer::TableWriter;
 
 /// How often an unfinished table is synced to disk at least.

@@ -1,6 +1,7 @@
 //! The atomic write of a table, a part or an NPY file: written beside its target as
 //! `.NAME.ecr-partial-<hash>`, locked while a run writes it, synced and renamed onto the
-//! target when complete (see the [module docs](super)).
+//! target when complete (see the [module docs](super)). Its two shared steps,
+//! [`remove_stale`] and [`put_in_place`], also write the `ecr` command's output files.
 
 use std::fs::{self, File, OpenOptions};
 use std::io::{self, BufWriter, Write};
@@ -68,6 +69,78 @@ fn try_lock(file: &File) -> io::Result<bool> {
     Ok(true)
 }
 
+/// Whether `file` can be locked (`flock`, exclusive, without waiting), that is no process
+/// holds it: `false` where locks do not work (nothing can be told then).
+fn lock_free(file: &File) -> bool {
+    #[cfg(unix)]
+    {
+        use std::os::unix::io::AsRawFd;
+        // SAFETY: flock on a descriptor owned by `file`.
+        unsafe { libc::flock(file.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) == 0 }
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = file;
+        false
+    }
+}
+
+/// Removes the files of `dir` whose names start with `prefix` that no process holds locked
+/// (`flock`): the staging files that killed runs left. Where locks do not work (some network
+/// filesystems) nothing is taken for stale, and nothing is removed.
+pub fn remove_stale(dir: &Path, prefix: &str) {
+    let Ok(list) = fs::read_dir(dir) else {
+        return;
+    };
+    for entry in list.flatten() {
+        let ours = entry
+            .file_name()
+            .to_str()
+            .is_some_and(|f| f.starts_with(prefix));
+        if ours && entry.file_type().is_ok_and(|t| t.is_file()) {
+            if let Ok(f) = File::open(entry.path()) {
+                if lock_free(&f) {
+                    let _ = fs::remove_file(entry.path());
+                }
+            }
+        }
+    }
+}
+
+/// Why [`put_in_place`] failed.
+#[derive(Debug)]
+pub enum PutError {
+    /// Writing or syncing the staged data failed: the target is as it was.
+    Write(io::Error),
+    /// The rename onto the target failed: the target is as it was, the staged file complete.
+    Rename(io::Error),
+}
+
+/// The last step of an atomic write: flushes and syncs (`fsync`) the staged `file`, renames
+/// `stage` onto `target` in one step, then syncs the directory (where it can be opened), so
+/// that `target` holds the previous file or the complete new one, never a part.
+///
+/// # Errors
+/// [`PutError`]: which step failed.
+pub fn put_in_place(
+    file: &mut BufWriter<File>,
+    stage: &Path,
+    target: &Path,
+) -> std::result::Result<(), PutError> {
+    file.flush()
+        .and_then(|()| file.get_ref().sync_all())
+        .map_err(PutError::Write)?;
+    fs::rename(stage, target).map_err(PutError::Rename)?;
+    let dir = match target.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if let Ok(d) = File::open(dir) {
+        let _ = d.sync_all();
+    }
+    Ok(())
+}
+
 /// Free bytes for an unprivileged writer on the filesystem of `dir`, where the system says.
 pub(super) fn free_bytes(dir: &Path) -> Option<u128> {
     #[cfg(unix)]
@@ -118,21 +191,7 @@ impl Staged {
         let hash = hex(&Sha256::digest(identity.as_bytes()))[..16].to_string();
         let stage = parent.join(format!("{prefix}{hash}"));
         if !resume {
-            if let Ok(list) = fs::read_dir(&parent) {
-                for entry in list.flatten() {
-                    let ours = entry
-                        .file_name()
-                        .to_str()
-                        .is_some_and(|f| f.starts_with(&prefix));
-                    if ours && entry.file_type().is_ok_and(|t| t.is_file()) {
-                        if let Ok(f) = File::open(entry.path()) {
-                            if try_lock(&f).unwrap_or(false) {
-                                let _ = fs::remove_file(entry.path());
-                            }
-                        }
-                    }
-                }
-            }
+            remove_stale(&parent, &prefix);
         }
         let file = OpenOptions::new()
             .read(true)
@@ -177,30 +236,18 @@ impl Staged {
         self.file.get_ref().sync_data().map_err(self.io())
     }
 
-    /// Syncs, renames onto the target and syncs the directory.
+    /// Syncs, renames onto the target and syncs the directory ([`put_in_place`]).
     pub(crate) fn commit(mut self) -> Result<()> {
         self.discard = false;
-        self.file.flush().map_err(self.io())?;
-        self.file.get_ref().sync_all().map_err(self.io())?;
-        fs::rename(&self.stage, &self.target).map_err(|e| {
-            Error::Io(format!(
+        match put_in_place(&mut self.file, &self.stage, &self.target) {
+            Ok(()) => Ok(()),
+            Err(PutError::Write(e)) => Err(self.io()(e)),
+            Err(PutError::Rename(e)) => Err(Error::Io(format!(
                 "cannot put '{}' in place of '{}': {e} (the complete table stays in '{}')",
                 self.stage.display(),
                 self.shown,
                 self.stage.display()
-            ))
-        })?;
-        #[cfg(unix)]
-        if let Some(parent) = self.target.parent() {
-            let dir = if parent.as_os_str().is_empty() {
-                Path::new(".")
-            } else {
-                parent
-            };
-            if let Ok(d) = File::open(dir) {
-                let _ = d.sync_all();
-            }
+            ))),
         }
-        Ok(())
     }
 }
