@@ -211,8 +211,12 @@ where
     let comm = &world.comm.0;
     let (rank, size) = (world.rank, world.size);
     let len = ensemble.len();
-    let opened =
-        (rank == 0).then(|| TableWriter::open(path, table, len, None, control_resume(control)));
+    let opened = (rank == 0).then(|| {
+        // The cheap refusal first: the fingerprint formats every member's input cells.
+        TableWriter::check_fits(path, table, len, None)?;
+        let fingerprint = ensemble.fingerprint(options, table)?;
+        TableWriter::open(path, table, &fingerprint, None, control_resume(control))
+    });
     let mut msg = [0u64; 2];
     if let Some(Ok(w)) = &opened {
         msg = [1, w.first_missing_member() as u64];
@@ -270,7 +274,7 @@ where
             let comm = &comm_shared.0;
             let mut queues: Vec<Queue> = (0..size).map(|_| Queue::default()).collect();
             for i in from..len {
-                let r = i % size;
+                let (r, _) = ecr_runtime::ensemble::part_of(i, size);
                 let (row, status) = if r == 0 {
                     rx.recv().map_err(|_| {
                         Error::InvalidInput(format!("rank 0 stopped before member {i}"))

@@ -7,7 +7,9 @@
 //!
 //! # The table
 //!
-//! One header row, then one row per member in member order: `member`, the varied values (in
+//! A first line `# ecr ensemble table of M members: …` (the run as a canonical command line),
+//! the run's fingerprint (`# NAME: VALUE` lines, `ecr_runtime::ensemble::fingerprint`: what a
+//! `--resume` and a `merge` compare), one header row, then one row per member in member order: `member`, the varied values (in
 //! the order of the `--vary` options), `status`, `t` (where the solution ends), the final
 //! state (`q_end, p_end` or `q1_end, q2_end, p1_end, p2_end`), `error_estimate` (in units of
 //! the tolerance; empty for a fixed step), `energy_error` (|H(y(t)) − H(y₀)| / |H(y₀)| at
@@ -19,13 +21,14 @@
 //! # Parts
 //!
 //! A part (`--shard K/N`) holds the members K − 1, K − 1 + N, …: a line `# ecr ensemble part
-//! K/N of M members: …` naming the ensemble, the header row, its rows, and the line `# end of
-//! part K/N: R rows, sha256 …` last. `merge` refuses parts that are missing, given twice, of
-//! another ensemble, without their end line (a shard killed or still running) or whose rows
-//! do not match their digest, and writes rows byte for byte those of the single run, in
-//! member order.
+//! K/N of M members: …` naming the ensemble, the fingerprint, the header row, its rows, and
+//! the line `# end of part K/N: R rows, sha256 …` last. `merge` refuses parts that are
+//! missing, given twice, of another run, without their end line (a shard killed or still
+//! running) or whose rows do not match their digest, and an `--out` that is one of the
+//! parts, and writes rows byte for byte those of the single run, in member order.
 
 use super::UsageError;
+use super::numbers::{count, finite, non_negative, positive};
 use super::output::OutputFile;
 use clap::{Args, Subcommand, ValueEnum};
 use ecr::problems::{Duffing, DuffingSystem, HenonHeiles, HenonHeilesSystem};
@@ -76,10 +79,10 @@ enum EnsembleCommand {
     /// Join the N parts written by --shard K/N into the table of the whole ensemble, byte for
     /// byte the table of one run.
     ///
-    /// Parts that are missing, given twice, of different ensembles, without their end line
-    /// (a shard killed or still running), or whose rows do not match the digest of their end
-    /// line (changed since) are refused with one line starting with 'error: ' on stderr and
-    /// exit status 2.
+    /// Parts that are missing, given twice, of different runs (the field that differs named),
+    /// without their end line (a shard killed or still running), or whose rows do not match
+    /// the digest of their end line (changed since), and an --out that is one of the parts,
+    /// are refused with one line starting with 'error: ' on stderr and exit status 2.
     Merge(MergeArgs),
 }
 
@@ -250,38 +253,40 @@ struct SolveArgs {
     vary: Vec<Vary>,
     /// henon-heiles: p1 ≥ 0 such that H(y0) = ENERGY (below 1/6), from the other values; a
     /// member where no real p1 reaches ENERGY is a failed row.
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_hyphen_values = true, value_parser = finite)]
     energy: Option<f64>,
     /// Solve every member to this tolerance (rtol = atol = TOL, verified over the whole span).
-    #[arg(long, allow_negative_numbers = true, required_unless_present = "h")]
+    #[arg(long, allow_hyphen_values = true, value_parser = positive, required_unless_present = "h")]
     tol: Option<f64>,
     /// Order parameter r (order 2r): with --h, required; with --tol, the order used.
-    #[arg(long, required_unless_present = "tol")]
+    #[arg(long, allow_hyphen_values = true, value_parser = count, required_unless_present = "tol")]
     r: Option<usize>,
     /// A fixed step size h > 0 instead of --tol (no verification, no estimate).
     #[arg(
         long,
-        allow_negative_numbers = true,
+        allow_hyphen_values = true,
+        value_parser = positive,
         conflicts_with = "tol",
         requires = "r"
     )]
     h: Option<f64>,
     /// Final time T ≥ 0 (every member from t = 0).
-    #[arg(long, allow_negative_numbers = true, required = true)]
+    #[arg(long, allow_hyphen_values = true, value_parser = non_negative, required = true)]
     t_end: Option<f64>,
     /// The table (CSV), or with --summary the summary (CSV), put in place when complete.
     #[arg(long, required = true)]
     out: Option<PathBuf>,
     /// Threads [default: RAYON_NUM_THREADS, else one per CPU this process may use; at most
     /// four per CPU].
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_hyphen_values = true)]
     threads: Option<i64>,
     /// Solve only part K of N (K = 1..N: the members K − 1, K − 1 + N, …) and write it as a
     /// part file for 'ecr ensemble merge'.
     #[arg(long, value_name = "K/N", allow_hyphen_values = true, value_parser = parse_shard)]
     shard: Option<Shard>,
     /// Continue the unfinished table that a killed or interrupted run of the same command
-    /// left beside --out: keep its rows, solve only the members that are missing.
+    /// left beside --out: keep its rows, solve only the members that are missing (the
+    /// unfinished table of another command is refused, naming what differs).
     #[arg(long)]
     resume: bool,
     /// Write statistics over the members instead of a row per member: per output column,
@@ -293,6 +298,7 @@ struct SolveArgs {
     #[arg(
         long,
         value_delimiter = ',',
+        allow_hyphen_values = true,
         value_parser = parse_quantile,
         requires = "summary"
     )]

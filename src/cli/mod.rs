@@ -4,6 +4,7 @@ mod bench;
 mod ensemble;
 mod interrupt;
 mod memory;
+mod numbers;
 mod output;
 mod progress;
 mod provenance;
@@ -67,14 +68,18 @@ fn set_exit_status(status: u8) {
     EXIT_STATUS.store(status, Ordering::Relaxed);
 }
 
-/// Collapses clap's multi-line report into one line.
+/// Collapses clap's multi-line report into one line, without its tips (clap's guesses at
+/// what was meant, such as passing an unknown option as a value) and usage.
 fn one_line(e: &clap::Error) -> String {
     e.render()
         .to_string()
         .lines()
         .map(str::trim)
         .filter(|l| {
-            !l.is_empty() && !l.starts_with("For more information") && !l.starts_with("Usage:")
+            !l.is_empty()
+                && !l.starts_with("For more information")
+                && !l.starts_with("Usage:")
+                && !l.starts_with("tip:")
         })
         .collect::<Vec<_>>()
         .join(" ")

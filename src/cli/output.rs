@@ -57,9 +57,12 @@
 //! that the directory takes new files; at the end the data is written there, synced, and the
 //! file renamed over `<name>` in one step. `<name>` holds the previous file or the complete new
 //! one, never a part; a run killed before the rename leaves only its hidden staging file,
-//! which the next run with the same `--out` removes (it is stale when it can be locked).
+//! which the next run with the same `--out` removes (it is stale when it can be locked). The
+//! removal and the last step are the library's, shared with the ensemble tables
+//! (`ecr_runtime::ensemble::table::{remove_stale, put_in_place}`).
 
 use super::UsageError;
+use ecr_runtime::ensemble::table::{PutError, put_in_place, remove_stale};
 use std::fs::{self, File};
 use std::io;
 use std::path::{Path, PathBuf};
@@ -661,19 +664,7 @@ impl OutputFile {
         }
         // Within NAME_MAX whatever the target's length (see `side_tag`).
         let prefix = format!(".{}.ecr-new-", side_tag(&name));
-        if let Ok(list) = fs::read_dir(&parent) {
-            for entry in list.flatten() {
-                let stale = entry
-                    .file_name()
-                    .to_str()
-                    .is_some_and(|f| f.starts_with(&prefix))
-                    && entry.file_type().is_ok_and(|t| t.is_file())
-                    && matches!(lock(&entry.path(), false), Ok(Some(_)));
-                if stale {
-                    let _ = fs::remove_file(entry.path());
-                }
-            }
-        }
+        remove_stale(&parent, &prefix);
         let pid = std::process::id();
         for k in 0..1000u32 {
             let stage = parent.join(format!("{prefix}{pid}-{k}"));
@@ -713,29 +704,19 @@ impl OutputFile {
     /// One line if the data cannot be written (the staging file is removed) or the file cannot
     /// be put in place.
     pub fn commit(mut self) -> Result<(), UsageError> {
-        use std::io::Write;
         let shown = self.shown.display().to_string();
-        let written = self
-            .file
-            .flush()
-            .and_then(|()| self.file.get_ref().sync_all());
-        if let Err(e) = written {
-            return Err(UsageError(format!(
+        match put_in_place(&mut self.file, &self.stage, &self.target) {
+            Ok(()) => {
+                self.done = true;
+                Ok(())
+            }
+            Err(PutError::Write(e)) => Err(UsageError(format!(
                 "cannot write output file '{shown}': {e}"
-            )));
+            ))),
+            Err(PutError::Rename(e)) => Err(UsageError(format!(
+                "cannot put output file '{shown}' in place: {e}"
+            ))),
         }
-        fs::rename(&self.stage, &self.target)
-            .map_err(|e| UsageError(format!("cannot put output file '{shown}' in place: {e}")))?;
-        self.done = true;
-        // The rename itself on disk (where the directory can be opened and synced).
-        let parent = match self.target.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p,
-            _ => Path::new("."),
-        };
-        if let Ok(dir) = File::open(parent) {
-            let _ = dir.sync_all();
-        }
-        Ok(())
     }
 }
 

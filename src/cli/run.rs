@@ -1,5 +1,6 @@
 //! `ecr run`: integrate one of the paper's test problems and report the run as JSON.
 
+use super::numbers::{count, finite, non_negative, positive};
 use super::{UsageError, memory, progress};
 use clap::{Args, ValueEnum};
 use ecr::problems::{Duffing, Fpu, HenonHeiles, Nls, Wind};
@@ -99,33 +100,33 @@ pub struct RunArgs {
     problem: ProblemArg,
     /// Frequency ω: Duffing [default: 5]; FPU stiff-spring frequency [default: 50; 0 gives
     /// Ω = 0, a problem for --method rknc].
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_hyphen_values = true, value_parser = non_negative)]
     omega: Option<f64>,
     /// Duffing nonlinearity k, |k| ≤ ω [default: 0.07].
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_hyphen_values = true, value_parser = finite)]
     k: Option<f64>,
     /// Wind angle θ in [0, π/2] [default: π/2 for wind, π/2 − 1e−4 for wind-dissipative].
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_hyphen_values = true, value_parser = non_negative)]
     theta: Option<f64>,
     /// Wind radius r (the paper's "r = 20") [default: 20].
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_hyphen_values = true, value_parser = positive)]
     amplitude: Option<f64>,
     /// NLS grid size N (even) [default: 128]. A run whose memory, estimated from N, r, s and
     /// --newton, exceeds 3/4 of the memory available (MemAvailable, ulimit -v) is refused.
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true, value_parser = count)]
     n: Option<usize>,
     /// Method family: ec (any problem; fpu in first-order form), tc or rknc (fpu).
     #[arg(long, value_enum, default_value = "ec")]
     method: MethodArg,
     /// Order parameter r (the method has order 2r); required with --h, with --tol it fixes
     /// the order the solver may use (default: chosen by the solver).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true, value_parser = count)]
     r: Option<usize>,
     /// Number of Gauss–Legendre points, s ≥ r [default: r].
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true, value_parser = count)]
     s: Option<usize>,
     /// Step size h > 0 of a fixed-step run (with --r); or solve to a tolerance with --tol.
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_hyphen_values = true, value_parser = positive)]
     h: Option<f64>,
     /// Solve to this tolerance instead of a fixed step (rtol = atol = TOL, ECrP with the
     /// order and step the solver chooses, the answer verified over the whole span): the
@@ -133,11 +134,11 @@ pub struct RunArgs {
     /// tolerance, measured against the exact solution (duffing) or a verified solve to
     /// TOL/1000. An answer that could not be verified is reported with its reason and exit
     /// status 2.
-    #[arg(long, allow_negative_numbers = true, conflicts_with_all = ["h", "s", "paper_solver", "max_sweeps", "constant_start", "extrapolate", "newton", "stage_tol"])]
+    #[arg(long, allow_hyphen_values = true, value_parser = positive, conflicts_with_all = ["h", "s", "paper_solver", "max_sweeps", "constant_start", "extrapolate", "newton", "stage_tol"])]
     tol: Option<f64>,
     /// Final time T ≥ 0 (the last step makes the step sizes add up to T exactly: shortened if
     /// h does not divide T, or h corrected by round-off; the report's `h_last`).
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_hyphen_values = true, value_parser = non_negative)]
     t_end: f64,
     /// The paper's stage solver: tolerance 1e−16, at most 5 sweeps, accepted at the limit.
     #[arg(long)]
@@ -145,14 +146,14 @@ pub struct RunArgs {
     /// Tolerance of the stage equations' solver in a fixed-step run (scaled max-norm of the
     /// update) [default: 1e−15, or 1e−16 with --paper-solver]; not the accuracy of the run
     /// (that is --tol).
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_hyphen_values = true, value_parser = non_negative)]
     stage_tol: Option<f64>,
     /// The former name of --stage-tol, easily taken for --tol: refused with a line that says
     /// which is which.
-    #[arg(long, hide = true, allow_negative_numbers = true)]
+    #[arg(long, hide = true, allow_hyphen_values = true)]
     tolerance: Option<String>,
     /// Maximum fixed-point sweeps per step [default: 100, or 5 with --paper-solver].
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true, value_parser = count)]
     max_sweeps: Option<usize>,
     /// Start each step's stage iteration from the previous step's continuous solution
     /// extrapolated to the new nodes: the default (without --paper-solver); kept for scripts.

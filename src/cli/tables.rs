@@ -27,10 +27,10 @@ pub struct TablesArgs {
     #[arg(long, value_enum)]
     family: FamilyArg,
     /// Order parameter r (the method has order 2r).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true, value_parser = super::numbers::count)]
     r: usize,
     /// Number of Gauss–Legendre points (default r, the paper's choice).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true, value_parser = super::numbers::count)]
     s: Option<usize>,
     /// Output format.
     #[arg(long, value_enum, default_value = "json")]

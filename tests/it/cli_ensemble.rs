@@ -35,6 +35,12 @@ fn read(path: &Path) -> String {
     std::fs::read_to_string(path).unwrap()
 }
 
+/// The header row and the rows of a table: its lines but the first line and the
+/// fingerprint (`# ` lines).
+fn rows(table: &str) -> Vec<&str> {
+    table.lines().filter(|l| !l.starts_with('#')).collect()
+}
+
 fn path(dir: &TempDir, name: &str) -> String {
     dir.0.join(name).to_str().unwrap().to_string()
 }
@@ -58,7 +64,12 @@ fn threads_and_shards_merged_give_the_table_of_one_run() {
     assert_eq!(code, 3, "{err}"); // four members fail: status 3
     assert!(out.contains("20 members"), "{out}");
     let table = read(Path::new(&one));
-    let lines: Vec<&str> = table.lines().collect();
+    assert!(
+        table.starts_with("# ecr ensemble table of 20 members: ecr "),
+        "{table}"
+    );
+    assert!(table.contains("\n# rtol: 1e-6\n"), "{table}");
+    let lines = rows(&table);
     assert_eq!(lines.len(), 21);
     assert_eq!(
         lines[0],
@@ -162,7 +173,7 @@ fn merges_of_incomplete_or_mixed_parts_are_refused() {
     assert_eq!(ecr(&args).0, 3);
     assert_refused(
         merge(&[&parts[0], &other, &parts[2]]),
-        "parts of different ensembles",
+        "are parts of different runs (t_eval: [5.0] in ",
     );
 
     // Cut short: without its end line, or in the middle of a row.
@@ -178,7 +189,8 @@ fn merges_of_incomplete_or_mixed_parts_are_refused() {
     }
     // A row removed (the end line kept): the rows no longer follow the members.
     let mut lines: Vec<&str> = full.lines().collect();
-    lines.remove(3);
+    let header = lines.iter().position(|l| !l.starts_with('#')).unwrap();
+    lines.remove(header + 2);
     std::fs::write(&cut, lines.join("\n") + "\n").unwrap();
     assert_refused(
         merge(&[&parts[0], &cut, &parts[2]]),
@@ -260,7 +272,7 @@ fn a_fixed_step_run_and_bad_input() {
     ]);
     assert_eq!(code, 0, "{err}");
     let table = read(Path::new(&out));
-    let lines: Vec<&str> = table.lines().collect();
+    let lines = rows(&table);
     assert_eq!(lines.len(), 7);
     assert_eq!(
         lines[0],
@@ -408,7 +420,7 @@ fn failed_members_give_a_nonzero_status() {
     ]);
     assert_eq!(code, 3, "{stdout}{err}");
     assert!(stdout.contains("0 verified"), "{stdout}");
-    assert_eq!(read(Path::new(&out)).lines().count(), 3);
+    assert_eq!(rows(&read(Path::new(&out))).len(), 3);
 }
 
 /// Issue 52, item 8: absurd thread counts and negative shards are one readable line.
@@ -496,7 +508,7 @@ fn runs_killed_at_random_moments_and_resumed_write_the_table_of_one_run() {
     assert_eq!(code, 0, "{err}");
     let duration = start.elapsed().as_secs_f64();
     let table = read(Path::new(&one));
-    assert_eq!(table.lines().count(), 901);
+    assert_eq!(rows(&table).len(), 901);
     let mut rng = Rng::new(52);
     for (threads, kills) in [("1", 4), ("2", 3)] {
         let out = path(&dir, &format!("resumed{threads}.csv"));
@@ -531,7 +543,7 @@ fn runs_killed_at_random_moments_and_resumed_write_the_table_of_one_run() {
                 })
                 .expect("an unfinished file");
             let text = String::from_utf8(std::fs::read(&partial).unwrap()).unwrap();
-            let rows = text.lines().count().saturating_sub(1);
+            let rows = rows(&text).len().saturating_sub(1);
             assert!(rows >= rows_before, "{rows} rows after {rows_before}");
             rows_before = rows;
         }
@@ -646,4 +658,200 @@ fn a_summary_and_progress_lines() {
         "{}",
         String::from_utf8_lossy(&output.stderr)
     );
+}
+
+/// The unfinished file of `out` in `dir`, if there is one.
+fn unfinished(dir: &Path, out: &str) -> Option<std::path::PathBuf> {
+    let prefix = format!(".{out}.ecr-partial-");
+    std::fs::read_dir(dir)
+        .unwrap()
+        .flatten()
+        .find(|e| e.file_name().to_str().unwrap().starts_with(&prefix))
+        .map(|e| e.path())
+}
+
+/// Issue 57, item 1: `--resume` of another command (another --tol, --t-end, grid) is refused
+/// in one line naming the field of the fingerprint that differs, and leaves the unfinished
+/// table as it was.
+#[test]
+fn a_resume_of_another_command_is_refused_naming_the_field() {
+    let dir = TempDir::new("ensemble-other-run");
+    std::fs::create_dir_all(&dir.0).unwrap();
+    let out = path(&dir, "r.csv");
+    let command = |tol: &'static str, t_end: &'static str, grid: &'static str| {
+        let mut args = vec![
+            "ensemble",
+            "--problem",
+            "henon-heiles",
+            "--vary",
+            grid,
+            "--energy",
+            "0.125",
+            "--tol",
+            tol,
+            "--t-end",
+            t_end,
+            "--threads",
+            "1",
+            "--quiet",
+            "--resume",
+            "--out",
+        ];
+        args.push(Box::leak(out.clone().into_boxed_str()));
+        args
+    };
+    // A long run killed once its unfinished table holds a few rows.
+    let long = command("1e-8", "400", "q2=-0.3:0.3:900");
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_ecr"))
+        .args(&long)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let start = std::time::Instant::now();
+    let stage = loop {
+        assert!(
+            start.elapsed().as_secs() < 120,
+            "no rows in the unfinished table"
+        );
+        assert!(child.try_wait().unwrap().is_none(), "the run finished");
+        if let Some(p) = unfinished(&dir.0, "r.csv") {
+            let text = std::fs::read_to_string(&p).unwrap_or_default();
+            if rows(&text).len() >= 3 {
+                break p;
+            }
+        }
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    };
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let before = std::fs::read(&stage).unwrap();
+    for (args, field) in [
+        (command("1e-7", "400", "q2=-0.3:0.3:900"), "rtol"),
+        (command("1e-8", "401", "q2=-0.3:0.3:900"), "t_eval"),
+        (command("1e-8", "400", "q2=-0.3:0.3:901"), "members"),
+        (command("1e-8", "400", "q2=-0.3:0.4:900"), "inputs"),
+    ] {
+        assert_refused(ecr(&args), &format!("is of another run ({field}: "));
+        assert_eq!(std::fs::read(&stage).unwrap(), before, "{field}");
+        assert!(!Path::new(&out).exists(), "{field}");
+    }
+}
+
+/// Issue 57, item 3: `ecr ensemble merge` never writes its table over one of its parts.
+#[test]
+fn a_merge_onto_one_of_its_parts_is_refused() {
+    let dir = TempDir::new("ensemble-merge-onto");
+    std::fs::create_dir_all(&dir.0).unwrap();
+    let parts: Vec<String> = (1..=2)
+        .map(|k| path(&dir, &format!("part{k}.csv")))
+        .collect();
+    for (k, part) in parts.iter().enumerate() {
+        let shard = format!("{}/2", k + 1);
+        assert!([0, 3].contains(&run(&["--shard", &shard, "--out", part]).0));
+    }
+    let before = read(Path::new(&parts[0]));
+    let other_spelling = format!("{}/./part1.csv", dir.0.display());
+    for out in [&parts[0], &parts[1], &other_spelling] {
+        assert_refused(
+            ecr(&["ensemble", "merge", "--out", out, &parts[0], &parts[1]]),
+            "would replace its part",
+        );
+        assert_eq!(read(Path::new(&parts[0])), before);
+    }
+    let merged = path(&dir, "merged.csv");
+    let (code, _, err) = ecr(&["ensemble", "merge", "--out", &merged, &parts[0], &parts[1]]);
+    assert_eq!(code, 0, "{err}");
+}
+
+/// Issue 57, item 6: a negative or non-finite value of a numeric option reaches its rule
+/// (not clap's "unexpected argument '-1' found"), named and in the same words for `run` and
+/// `ensemble`; an unknown option gets no tip about another one.
+#[test]
+fn numeric_options_are_refused_by_name_with_their_rule_in_both_commands() {
+    let dir = TempDir::new("ensemble-numbers");
+    std::fs::create_dir_all(&dir.0).unwrap();
+    let out = path(&dir, "a.csv");
+    let ensemble = |option: &'static str, value: &'static str| {
+        let mut args = vec![
+            "ensemble",
+            "--problem",
+            "henon-heiles",
+            "--vary",
+            "q2=0:0.1:2",
+            "--tol",
+            "1e-6",
+            "--t-end",
+            "1",
+            "--out",
+            Box::leak(out.clone().into_boxed_str()),
+        ];
+        match args.iter().position(|a| *a == option) {
+            Some(i) => args[i + 1] = value,
+            None => args.extend([option, value]),
+        }
+        if option == "--h" {
+            args.retain(|a| *a != "--tol" && *a != "1e-6");
+            args.extend(["--r", "2"]);
+        }
+        ecr(&args)
+    };
+    let run = |option: &'static str, value: &'static str| {
+        let mut args = vec![
+            "run",
+            "--problem",
+            "duffing",
+            "--tol",
+            "1e-6",
+            "--t-end",
+            "1",
+        ];
+        match args.iter().position(|a| *a == option) {
+            Some(i) => args[i + 1] = value,
+            None => args.extend([option, value]),
+        }
+        if option == "--h" {
+            args.retain(|a| *a != "--tol" && *a != "1e-6");
+            args.extend(["--r", "2"]);
+        }
+        ecr(&args)
+    };
+    let rules = [
+        ("--tol", "-1e-8", "must be finite and > 0"),
+        ("--tol", "nan", "must be finite and > 0"),
+        ("--tol", "inf", "must be finite and > 0"),
+        ("--tol", "0", "must be finite and > 0"),
+        ("--h", "-1e-3", "must be finite and > 0"),
+        ("--t-end", "-5e-1", "must be finite and >= 0"),
+        ("--t-end", "NaN", "must be finite and >= 0"),
+        ("--r", "-2", "must be a whole number from 1"),
+    ];
+    for (option, value, rule) in rules {
+        let named = format!("invalid value '{value}' for '{option} <");
+        let (e, r) = (ensemble(option, value), run(option, value));
+        for result in [e, r] {
+            assert_refused(result.clone(), &named);
+            assert_refused(result, rule);
+        }
+    }
+    assert_refused(
+        ensemble("--energy", "-inf"),
+        "'--energy <ENERGY>': must be finite",
+    );
+    assert_refused(
+        ensemble("--quantiles", "-0.5"),
+        "'-0.5' is not a quantile in [0, 1]",
+    );
+    assert_refused(
+        run("--omega", "-5e-1"),
+        "'--omega <OMEGA>': must be finite and >= 0",
+    );
+    assert_refused(run("--stage-tol", "-1e-20"), "must be finite and >= 0");
+    for result in [ensemble("--frobnicate", "1"), run("--frobnicate", "1")] {
+        assert_refused(result.clone(), "unexpected argument '--frobnicate' found");
+        assert!(
+            !result.2.contains("tip") && !result.2.contains("similar"),
+            "{result:?}"
+        );
+    }
 }

@@ -65,7 +65,7 @@ impl npyz::Serialize for Record {
 }
 
 /// The fields of a CSV line (RFC 4180 quotes; the line without its line break).
-fn fields(line: &str) -> Vec<String> {
+pub(super) fn fields(line: &str) -> Vec<String> {
     let mut out = Vec::new();
     let mut field = String::new();
     let mut quoted = false;
@@ -125,11 +125,19 @@ pub fn table_to_npy(csv: &Path, npy: &Path) -> Result<u64> {
         }
         Ok(n > 0)
     };
-    if !read(&mut reader, &mut line)? || line.starts_with('#') {
-        return Err(bad(
-            1,
-            "no header row, or a part file: merge the parts first",
-        ));
+    // The first line and the fingerprint (`# ` lines), then the header row.
+    let mut skip = 0u64;
+    loop {
+        if !read(&mut reader, &mut line)? || line.starts_with("# ecr ensemble part ") {
+            return Err(bad(
+                skip + 1,
+                "no header row, or a part file: merge the parts first",
+            ));
+        }
+        if !line.starts_with('#') {
+            break;
+        }
+        skip += 1;
     }
     let names = fields(&line);
     let status_at = names.iter().position(|n| n == "status");
@@ -139,7 +147,10 @@ pub fn table_to_npy(csv: &Path, npy: &Path) -> Result<u64> {
         message_at,
         names.first().is_some_and(|n| n == "member"),
     ) else {
-        return Err(bad(1, "the header has no member, status or message column"));
+        return Err(bad(
+            skip + 1,
+            "the header has no member, status or message column",
+        ));
     };
     let mut kinds: Vec<Option<Kind>> = names
         .iter()
@@ -156,7 +167,10 @@ pub fn table_to_npy(csv: &Path, npy: &Path) -> Result<u64> {
     while read(&mut reader, &mut line)? {
         let cells = fields(&line);
         if cells.len() != names.len() {
-            return Err(bad(rows + 2, "another number of fields than the header"));
+            return Err(bad(
+                skip + rows + 2,
+                "another number of fields than the header",
+            ));
         }
         for (c, cell) in cells.iter().enumerate() {
             if kinds[c] == Some(Kind::U64) && c != 0 && !cell.is_empty() {
@@ -202,11 +216,13 @@ pub fn table_to_npy(csv: &Path, npy: &Path) -> Result<u64> {
         .begin_nd()
         .map_err(io)?;
     let mut reader = open()?;
-    read(&mut reader, &mut line)?;
+    for _ in 0..=skip {
+        read(&mut reader, &mut line)?;
+    }
     let mut record = Record(Vec::new());
     for row in 0..rows {
         if !read(&mut reader, &mut line)? {
-            return Err(bad(row + 2, "the table changed while it was read"));
+            return Err(bad(skip + row + 2, "the table changed while it was read"));
         }
         record.0.clear();
         for (cell, kind) in fields(&line).iter().zip(&kinds) {
@@ -218,7 +234,8 @@ pub fn table_to_npy(csv: &Path, npy: &Path) -> Result<u64> {
                     } else {
                         cell.parse::<u64>().ok()
                     };
-                    let n = n.ok_or_else(|| bad(row + 2, "a count that is not a whole number"))?;
+                    let n =
+                        n.ok_or_else(|| bad(skip + row + 2, "a count that is not a whole number"))?;
                     record.0.extend_from_slice(&n.to_le_bytes());
                 }
                 Some(Kind::F64) => {
@@ -227,12 +244,12 @@ pub fn table_to_npy(csv: &Path, npy: &Path) -> Result<u64> {
                     } else {
                         cell.parse::<f64>().ok()
                     };
-                    let x = x.ok_or_else(|| bad(row + 2, "a cell that is not a number"))?;
+                    let x = x.ok_or_else(|| bad(skip + row + 2, "a cell that is not a number"))?;
                     record.0.extend_from_slice(&x.to_le_bytes());
                 }
                 Some(Kind::Status) => {
-                    let s =
-                        Status::from_word(cell).ok_or_else(|| bad(row + 2, "an unknown status"))?;
+                    let s = Status::from_word(cell)
+                        .ok_or_else(|| bad(skip + row + 2, "an unknown status"))?;
                     record.0.push(s.code());
                 }
             }

@@ -205,6 +205,33 @@ impl Options {
         self
     }
 
+    /// What of the options decides a solve's numbers, field by field as the fingerprint of an
+    /// ensemble's table writes them ([`crate::ensemble::fingerprint`]): the method, the
+    /// tolerances, the orders, the largest step, the most steps, the stops, the output times,
+    /// dense output, the number of events (their functions cannot be seen) and the stage
+    /// solver's settings. Not the trace (it changes nothing).
+    pub(crate) fn fingerprint_fields(&self) -> Vec<(&'static str, String)> {
+        use crate::ensemble::fingerprint::numbers;
+        vec![
+            ("method", format!("{:?}", self.method)),
+            ("rtol", format!("{:?}", self.rtol)),
+            ("atol", format!("{:?}", self.atol)),
+            ("orders", format!("{:?}", self.orders)),
+            ("max_step", format!("{:?}", self.max_step)),
+            ("max_steps", self.max_steps.to_string()),
+            ("tstops", numbers(&self.tstops)),
+            (
+                "t_eval",
+                self.t_eval
+                    .as_deref()
+                    .map_or_else(|| "every step".to_string(), numbers),
+            ),
+            ("dense", self.dense.to_string()),
+            ("events", self.events.len().to_string()),
+            ("settings", format!("{:?}", self.settings)),
+        ]
+    }
+
     /// The answer's orders r a verified solve may choose (r ≥ 2: its check is of order 2r − 2).
     pub(super) fn answer_orders(&self) -> Result<(usize, usize)> {
         let (lo, hi) = match self.method {
