@@ -354,3 +354,60 @@ fn rtol_alone_is_relative_at_any_scale() {
         }
     }
 }
+
+/// A largest step that needs more steps than `max_steps` is refused before the run, with the
+/// count (span 10, max_step 1e−12: 10¹³ steps; the former solve ran past 120 s with its memory
+/// growing), and so are more stops than `max_steps`.
+#[test]
+fn max_step_and_tstops_beyond_max_steps_are_refused_before_the_run() {
+    let (problem, _) = switch_on(5.0);
+    let start = std::time::Instant::now();
+    let err = problem
+        .solve(&Options::tolerance(1e-8).max_step(1e-12))
+        .unwrap_err()
+        .to_string();
+    eprintln!("max_step 1e-12: refused in {:?}: {err}", start.elapsed());
+    assert!(
+        err.contains("max_steps") && err.contains("10000000000000"),
+        "{err}"
+    );
+    let stops = (1..=1000).map(|k| k as f64 * 0.009);
+    let err = problem
+        .solve(&Options::tolerance(1e-8).tstops(stops).max_steps(500))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("1000 tstops") && err.contains("max_steps = 500"),
+        "{err}"
+    );
+}
+
+/// 10⁵ stops: met in order by a binary search (the former solve searched them from the start
+/// at every window: 14 s for 10⁵, over 300 s for 10⁶); every stop is a grid point.
+#[test]
+fn many_tstops_are_met_in_order() {
+    let (problem, exact) = switch_on(5.0);
+    let stops: Vec<f64> = (1..100_000).map(|k| k as f64 * 1e-4).collect();
+    let start = std::time::Instant::now();
+    let sol = problem
+        .solve(&Options::tolerance(1e-8).tstops(stops.iter().copied()))
+        .unwrap();
+    eprintln!(
+        "10^5 tstops: {:?}, {} steps",
+        start.elapsed(),
+        sol.stats.steps
+    );
+    let y = sol.last().unwrap();
+    for (i, v) in exact {
+        assert!((y[i] - v).abs() <= 1e-8 * (1.0 + v.abs()) * 10.0);
+    }
+    // Every stop is a grid point.
+    let mut grid = sol.t.iter().peekable();
+    for s in &stops {
+        while grid.next_if(|&&t| t < *s - 1e-12).is_some() {}
+        assert!(
+            grid.peek().is_some_and(|&&t| (t - s).abs() <= 1e-12),
+            "no grid point at the stop {s}"
+        );
+    }
+}

@@ -69,7 +69,7 @@ where
         )];
         fields.extend(
             options
-                .fingerprint_fields()
+                .fingerprint_fields(super::fingerprint::numbers)
                 .into_iter()
                 .map(|(n, v)| (n.to_string(), v)),
         );

@@ -188,7 +188,8 @@ impl Options {
     /// tolerance allows elsewhere — a pulse, a short forcing — can fall between the points where
     /// the methods sample g, and then no estimate sees it (no sampled method can): a largest
     /// step below its width makes the steps see it. For a feature at a known time,
-    /// [`tstops`](Self::tstops) is cheaper.
+    /// [`tstops`](Self::tstops) is cheaper. A largest step (with the stops) that needs more
+    /// than [`max_steps`](Self::max_steps) steps over the span is refused before the run.
     #[must_use]
     pub fn max_step(mut self, h: f64) -> Self {
         self.max_step = h;
@@ -209,9 +210,13 @@ impl Options {
     /// ensemble's table writes them ([`crate::ensemble::fingerprint`]): the method, the
     /// tolerances, the orders, the largest step, the most steps, the stops, the output times,
     /// dense output, the number of events (their functions cannot be seen) and the stage
-    /// solver's settings. Not the trace (it changes nothing).
-    pub(crate) fn fingerprint_fields(&self) -> Vec<(&'static str, String)> {
-        use crate::ensemble::fingerprint::numbers;
+    /// solver's settings. Not the trace (it changes nothing). Lists of numbers are written by
+    /// `numbers` (the fingerprint's own form: `solve` sits below `ensemble` and does not
+    /// import it).
+    pub(crate) fn fingerprint_fields(
+        &self,
+        numbers: impl Fn(&[f64]) -> String,
+    ) -> Vec<(&'static str, String)> {
         vec![
             ("method", format!("{:?}", self.method)),
             ("rtol", format!("{:?}", self.rtol)),
@@ -224,7 +229,7 @@ impl Options {
                 "t_eval",
                 self.t_eval
                     .as_deref()
-                    .map_or_else(|| "every step".to_string(), numbers),
+                    .map_or_else(|| "every step".to_string(), &numbers),
             ),
             ("dense", self.dense.to_string()),
             ("events", self.events.len().to_string()),
