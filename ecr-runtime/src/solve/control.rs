@@ -73,6 +73,64 @@ enum Attempt {
     Failed { record: Record, reason: String },
 }
 
+/// The growth of the estimate over the recent windows, (time, growth) in time order: the last
+/// 1/RECENT of the span holds up to as many windows as the span (every `tstops` a window), so
+/// its sum and largest entry are kept as windows come and go (a running sum and a queue of
+/// decreasing maxima) rather than recomputed: O(1) per window. Up to `EXACT` windows the sum is
+/// added afresh, front to back.
+#[derive(Default)]
+struct Recent {
+    windows: std::collections::VecDeque<(f64, f64)>,
+    sum: f64,
+    maxima: std::collections::VecDeque<(f64, f64)>,
+}
+
+impl Recent {
+    const EXACT: usize = 256;
+
+    fn push(&mut self, t: f64, growth: f64) {
+        self.windows.push_back((t, growth));
+        self.sum += growth;
+        while self.maxima.back().is_some_and(|&(_, g)| g <= growth) {
+            self.maxima.pop_back();
+        }
+        self.maxima.push_back((t, growth));
+    }
+
+    /// Drops the windows that end at or before `since`.
+    fn expire(&mut self, since: f64) {
+        while let Some(&(t, g)) = self.windows.front() {
+            if t > since {
+                break;
+            }
+            self.windows.pop_front();
+            self.sum -= g;
+        }
+        while self.maxima.front().is_some_and(|&(t, _)| t <= since) {
+            self.maxima.pop_front();
+        }
+    }
+
+    fn len(&self) -> usize {
+        self.windows.len()
+    }
+
+    fn clear(&mut self) {
+        *self = Recent::default();
+    }
+
+    /// The sum of the growths and the largest.
+    fn sum_and_top(&self) -> (f64, f64) {
+        let top = self.maxima.front().map_or(0.0, |&(_, g)| g.max(0.0));
+        if self.windows.len() <= Self::EXACT {
+            let sum = self.windows.iter().fold(0.0, |s, w| s + w.1);
+            (sum, top)
+        } else {
+            (self.sum, top)
+        }
+    }
+}
+
 /// A feature inside one step of a window (see [`local_step`]) being passed with smaller steps:
 /// what its step added to the estimate, with which step size, and the end of that step.
 #[derive(Clone, Copy, Debug)]
@@ -343,7 +401,7 @@ fn run(
     // When the run's level last changed, and the estimate then; the growth of the windows
     // since, over the last 1/RECENT of the span.
     let mut changed = (ctx.t0, 0.0_f64);
-    let mut recent: Vec<(f64, f64)> = Vec::new();
+    let mut recent = Recent::default();
     // The feature inside one step being passed with smaller steps, if any.
     let mut feature: Option<Feature> = None;
     while state.t < ctx.t_end - ctx.same_time && !record.ended() {
@@ -651,14 +709,12 @@ fn run(
         // The run's level: the estimate projected to t_end at the rate it grew over the recent
         // windows since the level last changed, without the largest growth of one window (a
         // kink or a close passage adds to the estimate once, it does not set its rate).
-        recent.push((state.t, growth));
+        recent.push(state.t, growth);
         let since = changed.0.max(state.t - span / RECENT);
-        recent.retain(|&(t, _)| t > since);
+        recent.expire(since);
         let elapsed = state.t - changed.0;
         let left = ctx.t_end - state.t;
-        let (sum, top) = recent
-            .iter()
-            .fold((0.0, 0.0_f64), |(s, m), w| (s + w.1, m.max(w.1)));
+        let (sum, top) = recent.sum_and_top();
         let duration = state.t - since;
         let rate = if recent.len() >= 3 { sum - top } else { sum } / duration;
         let projected = worst + rate * left;
