@@ -4,6 +4,7 @@
 //! be kept within the tolerance otherwise. It sees the runs through [`Runs`] only, so it is
 //! compiled once, not once per system.
 
+use super::features::{Feature, Recent, local_step};
 use super::pilot::pilot;
 use super::record::{Observer, Point, Record, cost_since};
 use super::runs::{Cost, Make, Runs};
@@ -71,91 +72,6 @@ enum Attempt {
     },
     /// Stuck or out of steps: the best solution so far and why.
     Failed { record: Record, reason: String },
-}
-
-/// The growth of the estimate over the recent windows, (time, growth) in time order: the last
-/// 1/RECENT of the span holds up to as many windows as the span (every `tstops` a window), so
-/// its sum and largest entry are kept as windows come and go (a running sum and a queue of
-/// decreasing maxima) rather than recomputed: O(1) per window. Up to `EXACT` windows the sum is
-/// added afresh, front to back.
-#[derive(Default)]
-struct Recent {
-    windows: std::collections::VecDeque<(f64, f64)>,
-    sum: f64,
-    maxima: std::collections::VecDeque<(f64, f64)>,
-}
-
-impl Recent {
-    const EXACT: usize = 256;
-
-    fn push(&mut self, t: f64, growth: f64) {
-        self.windows.push_back((t, growth));
-        self.sum += growth;
-        while self.maxima.back().is_some_and(|&(_, g)| g <= growth) {
-            self.maxima.pop_back();
-        }
-        self.maxima.push_back((t, growth));
-    }
-
-    /// Drops the windows that end at or before `since`.
-    fn expire(&mut self, since: f64) {
-        while let Some(&(t, g)) = self.windows.front() {
-            if t > since {
-                break;
-            }
-            self.windows.pop_front();
-            self.sum -= g;
-        }
-        while self.maxima.front().is_some_and(|&(t, _)| t <= since) {
-            self.maxima.pop_front();
-        }
-    }
-
-    fn len(&self) -> usize {
-        self.windows.len()
-    }
-
-    fn clear(&mut self) {
-        *self = Recent::default();
-    }
-
-    /// The sum of the growths and the largest.
-    fn sum_and_top(&self) -> (f64, f64) {
-        let top = self.maxima.front().map_or(0.0, |&(_, g)| g.max(0.0));
-        if self.windows.len() <= Self::EXACT {
-            let sum = self.windows.iter().fold(0.0, |s, w| s + w.1);
-            (sum, top)
-        } else {
-            (self.sum, top)
-        }
-    }
-}
-
-/// A feature inside one step of a window (see [`local_step`]) being passed with smaller steps:
-/// what its step added to the estimate, with which step size, and the end of that step.
-#[derive(Clone, Copy, Debug)]
-struct Feature {
-    delta: f64,
-    h: f64,
-    until: f64,
-}
-
-/// The step of a window that carries more than half of the growth of its estimate (the
-/// largest estimate so far, from `worst` before the window), and what it adds; `None` where
-/// the growth is spread over the steps (an error carried by the flow grows step by step).
-fn local_step(points: &[super::window::GridPoint], worst: f64) -> Option<(usize, f64)> {
-    let (mut top, mut best) = (worst, None::<(usize, f64)>);
-    for (j, q) in points.iter().enumerate() {
-        if q.est > top {
-            let delta = q.est - top;
-            top = q.est;
-            if best.is_none_or(|(_, d)| delta > d) {
-                best = Some((j, delta));
-            }
-        }
-    }
-    let growth = top - worst;
-    best.filter(|&(_, d)| growth > 0.0 && d > 0.5 * growth)
 }
 
 /// The step of the ladder at or below h.

@@ -70,6 +70,7 @@
 
 mod control;
 mod events;
+mod features;
 mod fixed;
 mod interp;
 mod options;
