@@ -4,6 +4,7 @@
 
 use ecr::problems::{Duffing, Fpu};
 use ecr_runtime::Error;
+use ecr_runtime::operator::BankArithmetic;
 use ecr_runtime::second_order::TcStepper;
 use ecr_runtime::stepper::{
     EcStepper, PARALLEL_MIN_DIM, Predictor, SolverSettings, StageScale, StageSolver, SweepLimit,
@@ -55,30 +56,39 @@ fn settings() -> impl Strategy<Value = SolverSettings> {
         0usize..3,
         prop::option::of(any_f64()),
         any::<bool>(),
+        any::<bool>(),
     )
         .prop_map(
-            |(tolerance, max_sweeps, accept, extrapolate, solver, atol, parallel)| SolverSettings {
-                tolerance,
-                max_sweeps,
-                on_limit: if accept {
-                    SweepLimit::Accept
-                } else {
-                    SweepLimit::Error
-                },
-                predictor: if extrapolate {
-                    Predictor::Extrapolate
-                } else {
-                    Predictor::Constant
-                },
-                solver: [
-                    StageSolver::FixedPoint,
-                    StageSolver::Newton,
-                    StageSolver::SimplifiedNewton,
-                ][solver],
-                scale: atol.map_or(StageScale::Global, |atol| StageScale::PerComponent { atol }),
-                compensated: !accept,
-                // The concurrent stage path for any d, or the default.
-                parallel_min_dim: if parallel { 0 } else { PARALLEL_MIN_DIM },
+            |(tolerance, max_sweeps, accept, extrapolate, solver, atol, parallel, f64_banks)| {
+                SolverSettings {
+                    tolerance,
+                    max_sweeps,
+                    on_limit: if accept {
+                        SweepLimit::Accept
+                    } else {
+                        SweepLimit::Error
+                    },
+                    predictor: if extrapolate {
+                        Predictor::Extrapolate
+                    } else {
+                        Predictor::Constant
+                    },
+                    solver: [
+                        StageSolver::FixedPoint,
+                        StageSolver::Newton,
+                        StageSolver::SimplifiedNewton,
+                    ][solver],
+                    scale: atol
+                        .map_or(StageScale::Global, |atol| StageScale::PerComponent { atol }),
+                    compensated: !accept,
+                    // The concurrent stage path for any d, or the default.
+                    parallel_min_dim: if parallel { 0 } else { PARALLEL_MIN_DIM },
+                    banks: if f64_banks {
+                        BankArithmetic::F64
+                    } else {
+                        BankArithmetic::Extended
+                    },
+                }
             },
         )
 }

@@ -1,7 +1,7 @@
 //! Dense operators: general (dynamic and static size) and symmetric.
 
 use std::ops::Range;
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 use nalgebra::{DMatrix, SMatrix, SVector};
 use num_complex::Complex64;
@@ -11,18 +11,27 @@ use super::checks::{
 };
 use super::entries::{DD_PROPAGATOR_MAX_DIM, NodeFunctions};
 use super::matvec::{gemv, gemv_tr, matvec_dd};
+use super::normal::DenseForm;
 use super::simple::diagonal_block;
 use super::spectral::{SkewGenerator, SpectralBasis};
-use super::traits::{LinearOperator, PhiBank};
+use super::traits::{BankArithmetic, LinearOperator, PhiBank};
 use crate::error::{Error, Result};
 use crate::phi::{check_symmetric, expm_dd_split, symmetric_eigen, validate_matrix};
 use crate::storage::ensure_allocatable;
 
 /// A general dense matrix `A` (non-normal allowed); φ by scaling and modified squaring
-/// ([`phi_dense`](crate::phi::phi_dense)).
-#[derive(Debug, Clone, PartialEq)]
+/// ([`phi_dense`](crate::phi::phi_dense)); under [`BankArithmetic::F64`] through its real
+/// Schur form where it is normal after balancing (computed on first use, once per operator).
+#[derive(Debug, Clone)]
 pub struct Dense {
     a: DMatrix<f64>,
+    form: OnceLock<Arc<DenseForm>>,
+}
+
+impl PartialEq for Dense {
+    fn eq(&self, other: &Self) -> bool {
+        self.a == other.a
+    }
 }
 
 impl Dense {
@@ -32,7 +41,10 @@ impl Dense {
     /// [`Error::NotSquare`], [`Error::NonFinite`].
     pub fn new(a: DMatrix<f64>) -> Result<Self> {
         validate_matrix(&a, "dense operator")?;
-        Ok(Dense { a })
+        Ok(Dense {
+            a,
+            form: OnceLock::new(),
+        })
     }
 
     /// The `d × d` matrix with the given entries in row-major order.
@@ -46,6 +58,24 @@ impl Dense {
     /// The matrix.
     pub fn matrix(&self) -> &DMatrix<f64> {
         &self.a
+    }
+
+    /// `true` if the f64 banks ([`BankArithmetic::F64`]) take the normal route: the matrix is
+    /// normal to working precision after balancing (computed once, on first use).
+    pub fn is_normal_after_balancing(&self) -> bool {
+        self.form().is_normal()
+    }
+
+    /// The stated error of the f64 banks ([`BankArithmetic::F64`]) for steps up to `h`,
+    /// relative to the largest function value: `8 d ε (1 + ρh)` on the normal route (ρ the
+    /// largest |λ|), `16 ε (1 + ‖hA‖₁)` on scaling and squaring, whichever serves, or `None`
+    /// where neither is within 1e−12: those banks take the default route.
+    pub fn f64_bank_bound(&self, h: f64) -> Option<f64> {
+        self.form().route(&self.a, h).map(|(_, b)| b)
+    }
+
+    fn form(&self) -> &DenseForm {
+        self.form.get_or_init(|| Arc::new(DenseForm::of(&self.a)))
     }
 }
 
@@ -108,6 +138,19 @@ impl LinearOperator for Dense {
     fn kernel_bank(&self, h: f64, taus: &[f64], n: usize) -> Result<DenseBank> {
         self.bank(h, taus, n, NodeFunctions::legendre(taus, n))
     }
+
+    fn kernel_bank_in(
+        &self,
+        h: f64,
+        taus: &[f64],
+        n: usize,
+        arithmetic: BankArithmetic,
+    ) -> Result<DenseBank> {
+        match arithmetic {
+            BankArithmetic::Extended => self.kernel_bank(h, taus, n),
+            BankArithmetic::F64 => self.bank_f64(h, taus, n, NodeFunctions::legendre(taus, n)),
+        }
+    }
 }
 
 /// The rounding error of `x = fl(a·t)` entry by entry (column-major `a`), exact by the fused
@@ -154,6 +197,40 @@ impl Dense {
             p,
             phis,
             lo,
+        })
+    }
+}
+
+impl Dense {
+    /// The bank in f64 ([`BankArithmetic::F64`]) through [`DenseForm`].
+    fn bank_f64(&self, h: f64, taus: &[f64], p: usize, f: NodeFunctions) -> Result<DenseBank> {
+        check_bank_scale(h, taus, self.a.amax())?;
+        let d = self.a.nrows();
+        ensure_allocatable(
+            &format!(
+                "the φ-bank of a dense {d} × {d} operator ({} nodes, p = {p})",
+                taus.len()
+            ),
+            taus.len()
+                .checked_mul(p + 2)
+                .and_then(|m| m.checked_add(8))
+                .and_then(|m| m.checked_mul(d.checked_mul(d)?)),
+        )?;
+        let form = self.form();
+        let tmax = taus.iter().fold(0.0f64, |m, t| m.max(t.abs()));
+        let Some((normal, _)) = form.route(&self.a, tmax * h) else {
+            return self.bank(h, taus, p, f);
+        };
+        let mut phis = Vec::with_capacity(taus.len() * (p + 1));
+        for (i, tau) in taus.iter().enumerate() {
+            phis.extend(form.node(&self.a, &f, i, tau * h, p, normal)?);
+        }
+        Ok(DenseBank {
+            dim: d,
+            len: taus.len(),
+            p,
+            phis,
+            lo: vec![None; taus.len()],
         })
     }
 }

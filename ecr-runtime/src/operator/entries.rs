@@ -6,9 +6,12 @@ use std::sync::Arc;
 
 use crate::error::Result;
 
+/// The node maps `K(τ_i)` of a Legendre bank, shared with every bank of the same nodes.
+type NodeMaps = Vec<Arc<[f64]>>;
+
 /// The functions a bank holds at each node: φ₀..φ_p, or `e^x` and the Legendre kernels.
 pub(crate) struct NodeFunctions {
-    legendre: Option<(Arc<crate::phi::LegendreKernels>, Vec<Vec<f64>>)>,
+    legendre: Option<(Arc<crate::phi::LegendreKernels>, NodeMaps)>,
     /// The nodes (Legendre banks only).
     taus: Vec<f64>,
 }
@@ -30,15 +33,13 @@ impl NodeFunctions {
 
     /// The Legendre kernels and the node map `K(τ_i)` of node i (Legendre banks only).
     pub(crate) fn legendre_map(&self, i: usize) -> Option<(&crate::phi::LegendreKernels, &[f64])> {
-        self.legendre
-            .as_ref()
-            .map(|(k, maps)| (&**k, maps[i].as_slice()))
+        self.legendre.as_ref().map(|(k, maps)| (&**k, &*maps[i]))
     }
 
     /// `e^x`, `Ψ_0(τ_i, ·) … Ψ_{n−1}(τ_i, ·)` for the nodes `taus`.
     pub(crate) fn legendre(taus: &[f64], n: usize) -> Self {
         let k = crate::phi::LegendreKernels::shared(n);
-        let maps = taus.iter().map(|&t| k.node_map(t)).collect();
+        let maps = taus.iter().map(|&t| k.node_map_shared(t)).collect();
         NodeFunctions {
             legendre: Some((k, maps)),
             taus: taus.to_vec(),
@@ -94,6 +95,25 @@ impl NodeFunctions {
                 };
                 out.extend(k.rows_dense(&maps[i], x)?);
                 Ok((out, lo))
+            }
+        }
+    }
+}
+
+impl NodeFunctions {
+    /// As [`dense`](Self::dense) in f64 only: no double-double propagator.
+    pub(crate) fn dense_f64(
+        &self,
+        i: usize,
+        x: &nalgebra::DMatrix<f64>,
+        p: usize,
+    ) -> Result<Vec<nalgebra::DMatrix<f64>>> {
+        match &self.legendre {
+            None => crate::phi::phi_dense(x, p),
+            Some((k, maps)) => {
+                let mut out = crate::phi::phi_dense(x, 0)?;
+                out.extend(k.rows_dense(&maps[i], x)?);
+                Ok(out)
             }
         }
     }

@@ -6,6 +6,23 @@ use std::ops::Range;
 use super::checks::combine_shape_checked;
 use crate::error::Result;
 
+/// The arithmetic a bank is built in ([`LinearOperator::kernel_bank_in`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum BankArithmetic {
+    /// Each operator's most accurate route, as [`LinearOperator::kernel_bank`]: the step's
+    /// propagator carried in double-double where the operator can
+    /// ([`PhiBank::propagate_dd`]), dense stage propagators from the double-double exponential
+    /// up to [`DD_STAGE_PROPAGATOR_MAX_DIM`](super::DD_STAGE_PROPAGATOR_MAX_DIM). What the
+    /// fixed-step methods' bit-level and round-off claims rest on.
+    #[default]
+    Extended,
+    /// f64 throughout, for a bank whose error (a few ε relative; docs/banks.md gives each
+    /// route's bound and its measurement) is far below what it is used for: one partial step
+    /// to a value between grid points, a step size only tried.
+    F64,
+}
+
 /// A linear operator `A: ℝᵈ → ℝᵈ` that can precompute its φ-functions.
 pub trait LinearOperator {
     /// The precomputed φ-functions for one step size (see [`PhiBank`]).
@@ -43,6 +60,26 @@ pub trait LinearOperator {
     /// # Errors
     /// As [`phi_bank`](Self::phi_bank).
     fn kernel_bank(&self, h: f64, taus: &[f64], n: usize) -> Result<Self::Bank>;
+
+    /// [`kernel_bank`](Self::kernel_bank) in the given arithmetic. Under
+    /// [`BankArithmetic::F64`] an operator may skip what its default route carries beyond f64
+    /// (the double-double propagators: [`PhiBank::propagate_dd`] then returns `false`) and take
+    /// a cheaper route where its structure allows one ([`Dense`](super::Dense): the real Schur
+    /// form of a matrix normal after balancing, computed once per operator). The default, for
+    /// operators whose banks are f64 already or that have no cheaper route, is `kernel_bank`.
+    ///
+    /// # Errors
+    /// As [`phi_bank`](Self::phi_bank).
+    fn kernel_bank_in(
+        &self,
+        h: f64,
+        taus: &[f64],
+        n: usize,
+        arithmetic: BankArithmetic,
+    ) -> Result<Self::Bank> {
+        let _ = arithmetic;
+        self.kernel_bank(h, taus, n)
+    }
 
     /// The bytes of a [`kernel_bank`](Self::kernel_bank) of `len` nodes and `n` kernels
     /// (slots `0..=n`) and of one of its workspaces ([`PhiBank::workspace`]), as this operator

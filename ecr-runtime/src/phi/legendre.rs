@@ -217,6 +217,26 @@ impl LegendreKernels {
         Arc::clone(map.entry(n).or_insert(k))
     }
 
+    /// [`node_map`](Self::node_map)`(τ)`, computed once per process for each (n, τ) and
+    /// shared: the banks' nodes are the same few for every step size (at most `MAPS_KEPT`
+    /// maps are kept; past that the table starts again).
+    pub(crate) fn node_map_shared(&self, tau: f64) -> Arc<[f64]> {
+        type Cache = Mutex<HashMap<(usize, u64), Arc<[f64]>>>;
+        static CACHE: OnceLock<Cache> = OnceLock::new();
+        const MAPS_KEPT: usize = 1 << 12;
+        let key = (self.n, tau.to_bits());
+        let cache = CACHE.get_or_init(Default::default);
+        if let Some(k) = cache.lock().unwrap_or_else(|e| e.into_inner()).get(&key) {
+            return Arc::clone(k);
+        }
+        let k: Arc<[f64]> = self.node_map(tau).into();
+        let mut map = cache.lock().unwrap_or_else(|e| e.into_inner());
+        if map.len() >= MAPS_KEPT {
+            map.clear();
+        }
+        Arc::clone(map.entry(key).or_insert(k))
+    }
+
     /// The number of kernels n.
     pub fn n(&self) -> usize {
         self.n

@@ -254,7 +254,8 @@ impl<S: System> Problem<S> {
                 ),
                 solve_stepper_bytes(system, r, check, &settings),
             )?;
-            let runs = runs::PairRuns::new(system, r, check, h, settings, cache)?;
+            let between = between_banks(options.rtol, options.atol, check);
+            let runs = runs::PairRuns::new(system, r, check, h, settings, between, cache)?;
             Ok(Box::new(runs))
         };
         match options.method {
@@ -375,6 +376,27 @@ fn stage_settings(options: &Options, verified: bool) -> crate::stepper::SolverSe
         }
     }
     settings
+}
+
+/// Values between grid points of a verified solve take their one partial step with f64 banks
+/// ([`BankArithmetic::F64`](crate::operator::BankArithmetic::F64)) when the tolerance is at
+/// least this: a bank's error (a few d·ε relative, docs/banks.md) then enters one step's value
+/// far below the tolerance, and nothing carries it on. Tighter tolerances, and fixed-step
+/// solves, keep the default banks.
+pub const F64_BETWEEN_MIN_TOL: f64 = 1e-10;
+
+/// The banks' arithmetic of the partial steps to values between grid points.
+pub(super) fn between_banks(
+    rtol: f64,
+    atol: f64,
+    verified: bool,
+) -> crate::operator::BankArithmetic {
+    use crate::operator::BankArithmetic;
+    if verified && rtol.max(atol) >= F64_BETWEEN_MIN_TOL {
+        BankArithmetic::F64
+    } else {
+        BankArithmetic::Extended
+    }
 }
 
 /// The bytes the steppers of one solve of `system` at order 2r hold at their peak, or `None`

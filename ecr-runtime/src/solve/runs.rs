@@ -11,7 +11,7 @@ use std::sync::Arc;
 
 use super::SolveCache;
 use crate::error::{Error, Result};
-use crate::operator::LinearOperator;
+use crate::operator::{BankArithmetic, LinearOperator};
 use crate::stepper::{EcStepper, Predictor, RuntimeKernel, SolverSettings, StepReport};
 use crate::system::System;
 use crate::tables::QuadratureKind;
@@ -157,13 +157,16 @@ pub(super) struct PairRuns<'a, S: System> {
     between: Option<(EcStepper<&'a S>, Option<EcStepper<&'a S>>)>,
     r: usize,
     settings: SolverSettings,
+    /// The banks' arithmetic of the steps to values between grid points.
+    between_banks: BankArithmetic,
     cache: Arc<SolveCache<S>>,
     slope_scratch: Vec<f64>,
     stiffness: Option<Vec<f64>>,
 }
 
 impl<'a, S: System> PairRuns<'a, S> {
-    /// The answer of order 2r at step h and, with `check`, its check.
+    /// The answer of order 2r at step h and, with `check`, its check; the steps to values
+    /// between grid points with banks in `between_banks` ([`between_banks`](super::between_banks)).
     ///
     /// # Errors
     /// What building the steppers reports (r out of range, the banks).
@@ -173,6 +176,7 @@ impl<'a, S: System> PairRuns<'a, S> {
         check: bool,
         h: f64,
         settings: SolverSettings,
+        between_banks: BankArithmetic,
         cache: &Arc<SolveCache<S>>,
     ) -> Result<Self> {
         let answer = EcStepper::from_kernel_cached(
@@ -200,6 +204,7 @@ impl<'a, S: System> PairRuns<'a, S> {
             between: None,
             r,
             settings,
+            between_banks,
             cache: Arc::clone(cache),
             slope_scratch: Vec::new(),
             stiffness: None,
@@ -210,6 +215,7 @@ impl<'a, S: System> PairRuns<'a, S> {
     fn between(&mut self, dt: f64) -> Result<&mut (EcStepper<&'a S>, Option<EcStepper<&'a S>>)> {
         let settings = SolverSettings {
             predictor: Predictor::Constant,
+            banks: self.between_banks,
             ..self.settings
         };
         if self.between.is_none() {

@@ -429,8 +429,10 @@ impl<S: System> Solution<S> {
             dt,
             SolverSettings {
                 predictor: crate::stepper::Predictor::Constant,
+                banks: super::between_banks(rtol, atol, check.is_some()),
                 ..dense.settings
             },
+            super::between_banks(rtol, atol, check.is_some()),
             &cache,
         )?;
         let mut cost = super::runs::Cost::default();

@@ -26,15 +26,23 @@ pub(crate) struct BankKey {
     pub(crate) r: usize,
     pub(crate) nodes: Vec<u64>,
     pub(crate) extrapolate: bool,
+    pub(crate) banks: crate::operator::BankArithmetic,
 }
 
 impl BankKey {
-    pub(crate) fn new(h: f64, r: usize, nodes: &[f64], extrapolate: bool) -> Self {
+    pub(crate) fn new(
+        h: f64,
+        r: usize,
+        nodes: &[f64],
+        extrapolate: bool,
+        banks: crate::operator::BankArithmetic,
+    ) -> Self {
         BankKey {
             h: h.to_bits(),
             r,
             nodes: nodes.iter().map(|c| c.to_bits()).collect(),
             extrapolate,
+            banks,
         }
     }
 }

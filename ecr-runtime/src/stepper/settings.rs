@@ -141,6 +141,10 @@ pub struct SolverSettings {
     /// of the serial path. Default [`PARALLEL_MIN_DIM`], measured; `usize::MAX`: always serial.
     /// Smaller systems take the serial path unchanged.
     pub parallel_min_dim: usize,
+    /// The arithmetic of the φ-banks ([`LinearOperator::kernel_bank_in`](crate::operator::LinearOperator::kernel_bank_in)):
+    /// [`BankArithmetic::Extended`] (the default) or f64 where the bank's error is far below
+    /// what the steps are used for.
+    pub banks: crate::operator::BankArithmetic,
 }
 
 /// The default [`SolverSettings::parallel_min_dim`], d = 2^15: from there on the concurrent
@@ -166,6 +170,7 @@ impl Default for SolverSettings {
             scale: StageScale::Global,
             compensated: true,
             parallel_min_dim: PARALLEL_MIN_DIM,
+            banks: crate::operator::BankArithmetic::Extended,
         }
     }
 }
@@ -211,6 +216,7 @@ impl SolverSettings {
             scale: StageScale::Global,
             compensated: true,
             parallel_min_dim: PARALLEL_MIN_DIM,
+            banks: crate::operator::BankArithmetic::Extended,
         }
     }
 }

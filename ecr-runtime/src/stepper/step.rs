@@ -191,7 +191,7 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             )?;
         }
         let buf = B::with_sizes(kernel.r(), kernel.s(), system.dim())?;
-        let built = Self::obtain(&system, &kernel, h, settings.predictor, cache.as_deref())?;
+        let built = Self::obtain(&system, &kernel, h, &settings, cache.as_deref())?;
         let ws = built.bank.workspace();
         let par = ParallelState::new(
             &kernel,
@@ -223,17 +223,18 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
         system: &S,
         kernel: &K,
         h: f64,
-        predictor: Predictor,
+        settings: &SolverSettings,
         cache: Option<&BankCache<Bank<S>>>,
     ) -> Result<Arc<Built<Bank<S>>>> {
         if !(h.is_finite() && h > 0.0) {
             return Err(Error::InvalidStepSize(h));
         }
-        let extrapolate = predictor == Predictor::Extrapolate;
-        let build = || Self::build_bank(system, kernel, h, extrapolate);
+        let extrapolate = settings.predictor == Predictor::Extrapolate;
+        let banks = settings.banks;
+        let build = || Self::build_bank(system, kernel, h, extrapolate, banks);
         match cache {
             Some(cache) => {
-                let key = BankKey::new(h, kernel.r(), kernel.nodes(), extrapolate);
+                let key = BankKey::new(h, kernel.r(), kernel.nodes(), extrapolate, banks);
                 cache.get_or_build(key, build)
             }
             None => build().map(Arc::new),
@@ -242,16 +243,25 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
 
     /// The kernel bank for h, its combine coefficients and the step as dense maps (where
     /// [`fuses_stages`]).
-    fn build_bank(system: &S, kernel: &K, h: f64, extrapolate: bool) -> Result<Built<Bank<S>>> {
+    fn build_bank(
+        system: &S,
+        kernel: &K,
+        h: f64,
+        extrapolate: bool,
+        banks: crate::operator::BankArithmetic,
+    ) -> Result<Built<Bank<S>>> {
         let r = kernel.r();
         let mut taus = kernel.nodes().to_vec();
         taus.push(1.0);
         if extrapolate {
             taus.extend(kernel.nodes().iter().map(|c| 1.0 + c));
         }
-        let bank = system.linear().kernel_bank(h, &taus, r)?;
+        let bank = system.linear().kernel_bank_in(h, &taus, r, banks)?;
         let coef = kernel_coefficients(h, &taus, r);
-        let fused = fuses_stages(&bank, r, kernel.s()).then(|| {
+        // f64 banks serve a step or a few (a value between grid points, a step size tried):
+        // the fused stage matrices, O(s²d²·r) to build, would cost more than they save.
+        let one_off = banks == crate::operator::BankArithmetic::F64;
+        let fused = (!one_off && fuses_stages(&bank, r, kernel.s())).then(|| {
             let mut ws = bank.workspace();
             fused_maps(kernel, &bank, &coef, &mut ws, system.dim(), extrapolate)
         });
@@ -278,7 +288,7 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                 &self.system,
                 &self.kernel,
                 h,
-                self.settings.predictor,
+                &self.settings,
                 self.cache.as_deref(),
             )?,
         };
@@ -598,7 +608,10 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
         }
         let r = self.kernel.r();
         let mut out = vec![0.0; y0.len()];
-        let bank = self.system.linear().kernel_bank(self.h, &[tau], r)?;
+        let bank = self
+            .system
+            .linear()
+            .kernel_bank_in(self.h, &[tau], r, self.settings.banks)?;
         let mut ws = bank.workspace();
         let coef = kernel_coefficients(self.h, &[tau], r);
         bank.combine(0..1, y0, self.buf.moments(), &coef, &mut out, &mut ws);

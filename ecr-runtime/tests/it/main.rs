@@ -6,6 +6,7 @@ mod common_phi;
 mod conserved_mean;
 mod double_double_crates;
 mod end_time;
+mod f64_banks;
 mod floors;
 mod hbvm_equivalence;
 mod legendre_kernels;

@@ -1,0 +1,343 @@
+//! The f64 route of a dense operator's banks: a matrix that is normal after a diagonal
+//! similarity (balancing) takes its functions from its real Schur form, computed once per
+//! operator; any other matrix keeps scaling and squaring, in f64.
+//!
+//! # The normal route
+//!
+//! `B = D⁻¹AD` with D from Osborne's balancing (row and column 2-norms equalised; the factors
+//! are not rounded to powers of 2, so that `[[0, 1], [−ω², 0]]` becomes the skew
+//! `[[0, ω], [−ω, 0]]`). A normal B is diagonalised by a unitary U, and so are its symmetric
+//! part S and its skew part K (they commute); U is found as the eigenvectors of the Hermitian
+//! `H = S + iγK` (γ an irrational constant, so that distinct eigenvalues of B stay distinct in
+//! H), by a Hermitian eigensolver, which converges on every matrix (the Francis QR of the real
+//! Schur form stalls on circulants such as the periodic first difference). Then for every bank
+//! function f (φ_k, `e^x`, the Legendre kernels), with `λ_k = (UᴴBU)_kk`,
+//!
+//! ```text
+//! f(τhA) = D Re(U f(τhΛ) Uᴴ) D⁻¹
+//! ```
+//!
+//! with the scalar functions at the eigenvalues: O(d) scalar evaluations and two real d × d
+//! products per matrix, against the O(d³ log ‖hA‖) products of scaling and squaring (and the
+//! double-double exponential of the default route). U is computed once per operator and serves
+//! every step size.
+//!
+//! "Normal to working precision" is measured, not assumed: the off-diagonal part of `UᴴBU`
+//! (what the route drops) must be at most `NORMAL_C · d · ε · ‖B‖_F` in Frobenius norm. The
+//! route's error is then the rounding of U and of the products and the eigenvalues' own error
+//! (absolute, ε‖B‖): [`DenseForm::bound`] states it, and tests/it/f64_banks.rs measures it
+//! against the double-double banks.
+//!
+//! # The general route
+//!
+//! Scaling and modified squaring in f64 ([`phi_dense`](crate::phi::phi_dense) and the kernels'
+//! doubling, [`LegendreKernels::psi_dense`](crate::phi::LegendreKernels::psi_dense)), applied
+//! to the balanced matrix where balancing lowers its 1-norm.
+
+use nalgebra::DMatrix;
+use num_complex::Complex64;
+
+use super::entries::NodeFunctions;
+use crate::error::Result;
+
+/// The dropped part of the Schur form may be this many `d ε ‖B‖_F`.
+const NORMAL_C: f64 = 16.0;
+
+/// An f64 route serves a bank when its stated error is at most this
+/// ([`DenseForm::route`]); otherwise the bank takes the default route.
+pub(crate) const F64_BOUND_MAX: f64 = 1e-12;
+
+/// Balancing stops when no factor moves by more than this (relative).
+const BALANCE_STOP: f64 = 1e-3;
+
+/// At most this many balancing sweeps.
+const BALANCE_SWEEPS: usize = 40;
+
+/// How the f64 banks of one dense matrix are computed.
+#[derive(Clone, Debug)]
+pub(crate) enum DenseForm {
+    /// `A = D U Λ Uᴴ D⁻¹` with U unitary.
+    Normal {
+        /// The diagonal of D.
+        scale: Vec<f64>,
+        /// The real and imaginary parts of U.
+        ur: DMatrix<f64>,
+        ui: DMatrix<f64>,
+        /// The eigenvalues.
+        lambda: Vec<Complex64>,
+        /// The largest |λ| (the 2-norm of the balanced matrix).
+        radius: f64,
+        /// D for the general route where it serves instead (see [`DenseForm::bound`]).
+        general: Option<Vec<f64>>,
+    },
+    /// Scaling and squaring, on `D⁻¹AD` if `scale` is given.
+    General { scale: Option<Vec<f64>> },
+}
+
+/// Osborne's balancing in the 2-norm: `(D, D⁻¹AD)`, D's entries unrounded.
+fn balance(a: &DMatrix<f64>) -> (Vec<f64>, DMatrix<f64>) {
+    let d = a.nrows();
+    let mut b = a.clone();
+    let mut scale = vec![1.0; d];
+    for _ in 0..BALANCE_SWEEPS {
+        let mut moved = false;
+        for i in 0..d {
+            let (mut c, mut r) = (0.0f64, 0.0f64);
+            for j in 0..d {
+                if j != i {
+                    c = c.hypot(b[(j, i)]);
+                    r = r.hypot(b[(i, j)]);
+                }
+            }
+            if c == 0.0 || r == 0.0 || !(c.is_finite() && r.is_finite()) {
+                continue;
+            }
+            let f = (r / c).sqrt();
+            if (f - 1.0).abs() > BALANCE_STOP {
+                moved = true;
+            }
+            if f != 1.0 {
+                scale[i] *= f;
+                for j in 0..d {
+                    if j != i {
+                        b[(j, i)] *= f;
+                        b[(i, j)] /= f;
+                    }
+                }
+            }
+        }
+        if !moved {
+            break;
+        }
+    }
+    // B from A and D in one rounding per entry.
+    for j in 0..d {
+        for i in 0..d {
+            b[(i, j)] = a[(i, j)] * (scale[j] / scale[i]);
+        }
+    }
+    (scale, b)
+}
+
+/// The 1-norm (largest absolute column sum).
+fn norm1(a: &DMatrix<f64>) -> f64 {
+    a.column_iter()
+        .map(|c| c.iter().map(|v| v.abs()).sum::<f64>())
+        .fold(0.0, f64::max)
+}
+
+/// γ of `H = S + iγK`: irrational, so that eigenvalues of B that differ stay apart in H.
+const GAMMA: f64 = 0.618_033_988_749_894_9;
+
+impl DenseForm {
+    /// The form of `a` (square, finite): normal after balancing, or general.
+    pub(crate) fn of(a: &DMatrix<f64>) -> Self {
+        let d = a.nrows();
+        if d == 0 {
+            return DenseForm::General { scale: None };
+        }
+        let (scale, b) = balance(a);
+        let norm = b.norm();
+        if norm == 0.0 || !norm.is_finite() {
+            return DenseForm::General { scale: None };
+        }
+        // The general route balances where that halves the 1-norm.
+        let balanced = norm1(&b) < 0.5 * norm1(a);
+        let general = || DenseForm::General {
+            scale: balanced.then(|| scale.clone()),
+        };
+        let limit = NORMAL_C * d as f64 * f64::EPSILON * norm;
+        // A quick test first: the commutator of a normal matrix vanishes.
+        let bt = b.transpose();
+        let comm = (&bt * &b - &b * &bt).norm();
+        if comm > 64.0 * limit * norm {
+            return general();
+        }
+        let h = DMatrix::from_fn(d, d, |r, c| {
+            Complex64::new(
+                0.5 * (b[(r, c)] + b[(c, r)]),
+                0.5 * GAMMA * (b[(r, c)] - b[(c, r)]),
+            )
+        });
+        let Some(eig) = nalgebra::linalg::SymmetricEigen::try_new(h, f64::EPSILON, 0) else {
+            return general();
+        };
+        let u = eig.eigenvectors;
+        let bc = b.map(|v| Complex64::new(v, 0.0));
+        let t = u.adjoint() * bc * &u;
+        let mut dropped = 0.0f64;
+        for c in 0..d {
+            for r in 0..d {
+                if r != c {
+                    dropped = dropped.hypot(t[(r, c)].norm());
+                }
+            }
+        }
+        if dropped.is_nan() || dropped > limit {
+            return general();
+        }
+        let lambda: Vec<Complex64> = (0..d).map(|k| t[(k, k)]).collect();
+        let radius = lambda.iter().fold(0.0f64, |m, l| m.max(l.norm()));
+        DenseForm::Normal {
+            general: balanced.then(|| scale.clone()),
+            scale,
+            ur: u.map(|z| z.re),
+            ui: u.map(|z| z.im),
+            lambda,
+            radius,
+        }
+    }
+
+    /// `true` if the matrix is normal after balancing.
+    pub(crate) fn is_normal(&self) -> bool {
+        matches!(self, DenseForm::Normal { .. })
+    }
+
+    /// The route of an f64 bank whose largest step length is `th`, and its stated error
+    /// (relative to the largest function value, at an eigenvalue or in norm): the normal route
+    /// where the matrix is normal after balancing and `8 d ε (1 + ρ th)` (ρ the largest |λ|:
+    /// the rounding of U and of the products, and the eigenvalues' own error, absolute `~ε ρ`,
+    /// which moves `f(τhλ)` by `~ε ρ th |f'|`; the φ-functions and kernels have `|f'| ≤ |f|`
+    /// on the left half plane) is at most [`F64_BOUND_MAX`]; else scaling and squaring where
+    /// `16 ε (1 + ‖thA‖₁)` (its measured error, tests/it/f64_banks.rs, with room) is; else
+    /// `None`: the bank takes the default route.
+    pub(crate) fn route(&self, a: &DMatrix<f64>, th: f64) -> Option<(bool, f64)> {
+        let th = th.abs();
+        if let DenseForm::Normal { ur, radius, .. } = self {
+            let b = 8.0 * ur.nrows() as f64 * f64::EPSILON * (1.0 + radius * th);
+            if b <= F64_BOUND_MAX {
+                return Some((true, b));
+            }
+        }
+        let norm = match self {
+            DenseForm::Normal {
+                general: Some(s), ..
+            }
+            | DenseForm::General { scale: Some(s) } => (0..a.ncols())
+                .map(|c| {
+                    (0..a.nrows())
+                        .map(|r| (a[(r, c)] * (s[c] / s[r])).abs())
+                        .sum::<f64>()
+                })
+                .fold(0.0, f64::max),
+            _ => norm1(a),
+        };
+        let b = 16.0 * f64::EPSILON * (1.0 + norm * th);
+        (b <= F64_BOUND_MAX).then_some((false, b))
+    }
+
+    /// The `p + 1` matrices of node `i` at `τh` (`th`), through this form; `normal` says which
+    /// route serves the bank ([`route`](Self::route) at its largest τh). `a` is the
+    /// operator's matrix (general route).
+    pub(crate) fn node(
+        &self,
+        a: &DMatrix<f64>,
+        f: &NodeFunctions,
+        i: usize,
+        th: f64,
+        p: usize,
+        normal: bool,
+    ) -> Result<Vec<DMatrix<f64>>> {
+        match self {
+            DenseForm::Normal {
+                scale,
+                ur,
+                ui,
+                lambda,
+                radius,
+                ..
+            } if normal => spectral_node(scale, ur, ui, lambda, *radius, f, i, th, p),
+            DenseForm::Normal { general, .. } => general_node(a, general.as_deref(), f, i, th, p),
+            DenseForm::General { scale } => general_node(a, scale.as_deref(), f, i, th, p),
+        }
+    }
+}
+
+/// The general route at one node: scaling and squaring in f64 on `D⁻¹(τhA)D`.
+fn general_node(
+    a: &DMatrix<f64>,
+    scale: Option<&[f64]>,
+    f: &NodeFunctions,
+    i: usize,
+    th: f64,
+    p: usize,
+) -> Result<Vec<DMatrix<f64>>> {
+    let x = match scale {
+        Some(s) => DMatrix::from_fn(a.nrows(), a.ncols(), |r, c| a[(r, c)] * (s[c] / s[r]) * th),
+        None => a * th,
+    };
+    let mut out = f.dense_f64(i, &x, p)?;
+    if let Some(s) = scale {
+        for m in &mut out {
+            for c in 0..m.ncols() {
+                for r in 0..m.nrows() {
+                    m[(r, c)] *= s[r] / s[c];
+                }
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// The normal route at one node: `D Re(U f(τhΛ) Uᴴ) D⁻¹` for the p + 1 functions.
+#[allow(clippy::too_many_arguments)]
+fn spectral_node(
+    scale: &[f64],
+    ur: &DMatrix<f64>,
+    ui: &DMatrix<f64>,
+    lambda: &[Complex64],
+    radius: f64,
+    f: &NodeFunctions,
+    i: usize,
+    th: f64,
+    p: usize,
+) -> Result<Vec<DMatrix<f64>>> {
+    let d = ur.nrows();
+    // fl[k (p + 1) + j] = f_j(τhλ_k).
+    let mut fl = vec![Complex64::new(0.0, 0.0); d * (p + 1)];
+    let mut rbuf = vec![0.0f64; p + 1];
+    for (k, l) in lambda.iter().enumerate() {
+        let row = &mut fl[k * (p + 1)..(k + 1) * (p + 1)];
+        if l.im == 0.0 {
+            f.real(i, th * l.re, &mut rbuf);
+            for (o, v) in row.iter_mut().zip(&rbuf) {
+                *o = Complex64::new(*v, 0.0);
+            }
+        } else {
+            f.complex(i, l * th, row);
+        }
+    }
+    if fl.iter().any(|v| !(v.re.is_finite() && v.im.is_finite())) {
+        return Err(crate::error::Error::Numerical(format!(
+            "phi-function overflow in the bank (an entry beyond {:.1e}): the eigenvalues of A \
+             reach |λ| = {radius:.3e} at τh = {th:.3e}; a smaller step size h keeps it finite",
+            f64::MAX
+        )));
+    }
+    let mut out = Vec::with_capacity(p + 1);
+    let (mut wr, mut wi) = (DMatrix::<f64>::zeros(d, d), DMatrix::<f64>::zeros(d, d));
+    for j in 0..=p {
+        // W = U diag(f_j): Wr = Ur Re f − Ui Im f, Wi = Ur Im f + Ui Re f.
+        for k in 0..d {
+            let v = fl[k * (p + 1) + j];
+            for r in 0..d {
+                let (a, b) = (ur[(r, k)], ui[(r, k)]);
+                wr[(r, k)] = a * v.re - b * v.im;
+                wi[(r, k)] = a * v.im + b * v.re;
+            }
+        }
+        // Re(W Uᴴ) = Wr Urᵀ + Wi Uiᵀ.
+        let mut m = DMatrix::<f64>::zeros(d, d);
+        for c in 0..d {
+            for r in 0..d {
+                let mut acc = 0.0;
+                for k in 0..d {
+                    acc += wr[(r, k)] * ur[(c, k)] + wi[(r, k)] * ui[(c, k)];
+                }
+                m[(r, c)] = acc * (scale[r] / scale[c]);
+            }
+        }
+        out.push(m);
+    }
+    Ok(out)
+}
