@@ -571,7 +571,7 @@ fn lyapunov_section(out: &mut String, s: &LyapunovStudy, claims: &mut Vec<String
     );
     let _ = writeln!(
         out,
-        "| method | H(T) | H(T) − H_ref(T) | max abs(H − H_ref) over the samples | largest increase of H between samples | wall time |"
+        "| method | H(T) | H(T) − H_ref(T) | max abs(H − H_ref) over the samples | largest increase of H between consecutive samples | wall time |"
     );
     let _ = writeln!(out, "|---|---|---|---|---|---|");
     let last = |r: &experiments::LyapunovRun| r.samples.last().map_or(f64::NAN, |p| p.1);
@@ -581,7 +581,7 @@ fn lyapunov_section(out: &mut String, s: &LyapunovStudy, claims: &mut Vec<String
         s.reference.method,
         s.reference_h,
         last(&s.reference),
-        e(s.reference.max_increase),
+        increase_cell(s.reference.max_increase),
         s.reference.seconds
     );
     for r in &s.runs {
@@ -592,7 +592,7 @@ fn lyapunov_section(out: &mut String, s: &LyapunovStudy, claims: &mut Vec<String
             last(r),
             e(last(r) - last(&s.reference)),
             e(r.max_dev),
-            e(r.max_increase),
+            increase_cell(r.max_increase),
             r.seconds
         );
     }
@@ -729,6 +729,24 @@ fn at_equal_h_cell(s: &ErrorStudy, names: &[&str]) -> String {
         );
     }
     cell
+}
+
+/// The Lyapunov table's cell for the largest increase of H between consecutive samples: the
+/// increase, or, when H never increases (the point for a dissipative problem), "none" and by
+/// how little it decreases at least.
+fn increase_cell(max_increase: f64) -> String {
+    if max_increase.is_nan() {
+        "—".to_string()
+    } else if max_increase > 0.0 {
+        e(max_increase)
+    } else if max_increase == 0.0 {
+        "none (H never increases)".to_string()
+    } else {
+        format!(
+            "none (H decreases at every sample, by at least {})",
+            e(-max_increase)
+        )
+    }
 }
 
 /// The smallest of (method, value, shown value), then in parentheses EC2P's when another
@@ -1266,5 +1284,35 @@ mod tests {
             "{cell}"
         );
         assert!(!cell.contains("RKEPC2"), "{cell}");
+    }
+
+    /// For the dissipative problem H decreases at every sample: the "largest increase"
+    /// column says there is none instead of showing a negative increase.
+    #[test]
+    fn lyapunov_increase_column_for_an_all_decreasing_series() {
+        let samples = vec![(0.0, 1.0), (0.5, 0.9), (1.0, 0.85)];
+        let s = lyapunov_study(vec![lyapunov(PRIMARY, samples, -0.05)]);
+        let mut out = String::new();
+        lyapunov_section(&mut out, &s, &mut Vec::new());
+        assert!(
+            out.contains("| largest increase of H between consecutive samples |"),
+            "{out}"
+        );
+        let rows: Vec<&str> = out.lines().filter(|l| l.starts_with("| EC2P")).collect();
+        assert_eq!(rows.len(), 2, "{out}");
+        for row in &rows {
+            let cells: Vec<&str> = row.trim_matches('|').split(" | ").map(str::trim).collect();
+            assert!(
+                cells[4].starts_with("none (H decreases at every sample, by at least "),
+                "{row}"
+            );
+        }
+        assert_eq!(
+            increase_cell(-0.05),
+            "none (H decreases at every sample, by at least 5.00e-2)"
+        );
+        assert_eq!(increase_cell(0.0), "none (H never increases)");
+        assert_eq!(increase_cell(3e-15), "3.00e-15");
+        assert_eq!(increase_cell(f64::NAN), "—");
     }
 }
