@@ -571,7 +571,7 @@ fn lyapunov_section(out: &mut String, s: &LyapunovStudy, claims: &mut Vec<String
     );
     let _ = writeln!(
         out,
-        "| method | H(T) | H(T) − H_ref(T) | max abs(H − H_ref) over the samples | largest increase of H between samples | wall time |"
+        "| method | H(T) | H(T) − H_ref(T) | max abs(H − H_ref) over the samples | largest increase of H between consecutive samples | wall time |"
     );
     let _ = writeln!(out, "|---|---|---|---|---|---|");
     let last = |r: &experiments::LyapunovRun| r.samples.last().map_or(f64::NAN, |p| p.1);
@@ -581,7 +581,7 @@ fn lyapunov_section(out: &mut String, s: &LyapunovStudy, claims: &mut Vec<String
         s.reference.method,
         s.reference_h,
         last(&s.reference),
-        e(s.reference.max_increase),
+        increase_cell(s.reference.max_increase),
         s.reference.seconds
     );
     for r in &s.runs {
@@ -592,7 +592,7 @@ fn lyapunov_section(out: &mut String, s: &LyapunovStudy, claims: &mut Vec<String
             last(r),
             e(last(r) - last(&s.reference)),
             e(r.max_dev),
-            e(r.max_increase),
+            increase_cell(r.max_increase),
             r.seconds
         );
     }
@@ -645,23 +645,17 @@ fn time_to_reach(s: &ErrorStudy, method: &str, target: f64) -> Option<(f64, bool
     ))
 }
 
-/// Per step size of the study, the fixed-step methods whose error is the smallest (within
-/// 1 %): each method with the number of step sizes it wins, most first, and the number of
-/// step sizes compared.
+/// Per step size of the study, the methods whose error is the smallest (within 1 %), from the
+/// same runs as the study's error table: every method with a run at that h, a method that
+/// chooses its own steps inside each h (DOP853) included. Each method with the number of step
+/// sizes it wins, most first, and the number of step sizes compared.
 fn wins_at_equal_h(s: &ErrorStudy, names: &[&str]) -> (Vec<(String, usize)>, usize) {
-    let fixed = |m: &str| {
-        s.runs
-            .iter()
-            .any(|r| r.method == m && !r.own_steps && r.error.is_finite())
-            && !s.runs.iter().any(|r| r.method == m && r.own_steps)
-    };
-    let methods: Vec<&str> = names.iter().copied().filter(|m| fixed(m)).collect();
-    let mut hs: Vec<f64> = s
-        .runs
+    let methods: Vec<&str> = names
         .iter()
-        .filter(|r| !r.own_steps)
-        .map(|r| r.h)
+        .copied()
+        .filter(|m| s.runs.iter().any(|r| r.method == *m && r.error.is_finite()))
         .collect();
+    let mut hs: Vec<f64> = s.runs.iter().map(|r| r.h).collect();
     hs.sort_by(|a, b| b.total_cmp(a));
     hs.dedup();
     let mut wins: Vec<(String, usize)> = methods.iter().map(|m| (m.to_string(), 0)).collect();
@@ -689,6 +683,70 @@ fn wins_at_equal_h(s: &ErrorStudy, names: &[&str]) -> (Vec<(String, usize)>, usi
     wins.retain(|w| w.1 > 0);
     wins.sort_by_key(|w| std::cmp::Reverse(w.1));
     (wins, compared)
+}
+
+/// A method of the study that chooses its own steps inside each h (DOP853).
+fn own_steps(s: &ErrorStudy, method: &str) -> bool {
+    s.runs.iter().any(|r| r.method == method && r.own_steps)
+}
+
+/// Evaluations of g per step h, over all the method's runs of the study (None without runs or
+/// without counted evaluations).
+fn g_evals_per_h(s: &ErrorStudy, method: &str) -> Option<f64> {
+    let (evals, steps) = s
+        .runs
+        .iter()
+        .filter(|r| r.method == method)
+        .fold((0usize, 0.0f64), |(e, n), r| {
+            (e + r.g_evals, n + (s.t_end / r.h).round())
+        });
+    (evals > 0 && steps > 0.0).then(|| evals as f64 / steps)
+}
+
+/// The verdict's "at equal h" cell: the methods with the smallest error and at how many of
+/// the study's step sizes; when one of them chooses its own steps inside each h, what that
+/// costs in evaluations of g per h next to {PRIMARY}'s (equal h is not equal work).
+fn at_equal_h_cell(s: &ErrorStudy, names: &[&str]) -> String {
+    let (wins, compared) = wins_at_equal_h(s, names);
+    if wins.is_empty() {
+        return "—".to_string();
+    }
+    let mut cell = wins
+        .iter()
+        .map(|(m, n)| format!("{m} {n}/{compared}"))
+        .collect::<Vec<_>>()
+        .join(", ");
+    for (m, _) in wins.iter().filter(|(m, _)| own_steps(s, m)) {
+        let per_h = |m: &str| g_evals_per_h(s, m).map(|x| format!("{x:.0}"));
+        let cost = match (per_h(m), per_h(PRIMARY)) {
+            (Some(a), Some(b)) => format!(": {a} evaluations of g per h, {PRIMARY} {b}"),
+            (Some(a), None) => format!(": {a} evaluations of g per h"),
+            _ => String::new(),
+        };
+        let _ = write!(
+            cell,
+            " ({m} takes its own steps inside each h{cost}; equal h is not equal work)"
+        );
+    }
+    cell
+}
+
+/// The Lyapunov table's cell for the largest increase of H between consecutive samples: the
+/// increase, or, when H never increases (the point for a dissipative problem), "none" and by
+/// how little it decreases at least.
+fn increase_cell(max_increase: f64) -> String {
+    if max_increase.is_nan() {
+        "—".to_string()
+    } else if max_increase > 0.0 {
+        e(max_increase)
+    } else if max_increase == 0.0 {
+        "none (H never increases)".to_string()
+    } else {
+        format!(
+            "none (H decreases at every sample, by at least {})",
+            e(-max_increase)
+        )
+    }
 }
 
 /// The smallest of (method, value, shown value), then in parentheses EC2P's when another
@@ -719,6 +777,8 @@ fn winner(mut v: Vec<(&str, f64, String)>) -> String {
 fn answer(r: &Results, names: &[&str]) -> String {
     let mut accurate = Vec::new();
     let mut not_accurate = Vec::new();
+    // Winners at equal h that choose their own steps inside each h.
+    let mut own: Vec<String> = Vec::new();
     for s in error_studies(r) {
         let (wins, compared) = wins_at_equal_h(s, names);
         let won = |m: &str| wins.iter().find(|(w, _)| w == m).map_or(0, |w| w.1);
@@ -727,8 +787,11 @@ fn answer(r: &Results, names: &[&str]) -> String {
         }
         if 2 * won(PRIMARY) > compared {
             accurate.push(s.label.clone());
-        } else if let Some((best, _)) = wins.iter().max_by_key(|w| w.1) {
+        } else if let Some((best, _)) = wins.iter().filter(|w| w.0 != PRIMARY).max_by_key(|w| w.1) {
             not_accurate.push(format!("{} ({best})", s.label));
+            if own_steps(s, best) && !own.contains(best) {
+                own.push(best.clone());
+            }
         }
     }
     let mut keeps = Vec::new();
@@ -758,11 +821,20 @@ fn answer(r: &Results, names: &[&str]) -> String {
         "**Answer.** In this run {PRIMARY} is the most accurate at equal step size in {} error \
          studies and keeps the energy best in {} energy studies: the paper's \"higher accuracy\" \
          {}, and its \"more excellent invariant-preserving property\" {} (in parentheses: the \
-         method that does better there). The evidence follows.",
+         method that does better there{}). The evidence follows.",
         count(&accurate, &not_accurate),
         count(&keeps, &not_keeps),
         holds(&not_accurate, "claim").trim_start_matches("claim "),
         holds(&not_keeps, "claim").trim_start_matches("claim "),
+        if own.is_empty() {
+            String::new()
+        } else {
+            format!(
+                "; {} {} its own steps inside each h, so there equal h is not equal work",
+                own.join(" and "),
+                if own.len() > 1 { "take" } else { "takes" }
+            )
+        },
     )
 }
 
@@ -773,9 +845,11 @@ fn verdict(out: &mut String, r: &Results, names: &[&str]) {
     let _ = writeln!(
         out,
         "Who wins in this run, per problem (the details follow, study by study). **At equal \
-         h**: at each step size, the fixed-step method(s) with the smallest global error \
-         (within 1 %), counted over the study's step sizes (\"3/4\": the smallest at 3 of 4; \
-         DOP853 chooses its own steps and is left out). **At equal error**: the least wall time to reach {PRIMARY}'s smallest \
+         h**: at each step size, the method(s) with the smallest global error (within 1 %) in \
+         the study's table, counted over its step sizes (\"3/4\": the smallest at 3 of 4); a \
+         method that chooses its own steps inside each h (DOP853) counts too, with its \
+         evaluations of g per h beside {PRIMARY}'s where it wins: for it equal h is not \
+         equal work. **At equal error**: the least wall time to reach {PRIMARY}'s smallest \
          error in the study (log time interpolated in log error between a method's runs; ≤: \
          its cheapest run is already more accurate; one run per point, a single thread: \
          `ecr bench` times methods properly). **Energy**: the smallest max abs(H − H0) at the \
@@ -810,15 +884,7 @@ fn verdict(out: &mut String, r: &Results, names: &[&str]) {
         winner(runs.iter().map(|&(m, v)| (m, v, e(v))).collect())
     };
     for s in error_studies(r) {
-        let (wins, compared) = wins_at_equal_h(s, names);
-        let at_h = if wins.is_empty() {
-            "—".to_string()
-        } else {
-            wins.iter()
-                .map(|(m, n)| format!("{m} {n}/{compared}"))
-                .collect::<Vec<_>>()
-                .join(", ")
-        };
+        let at_h = at_equal_h_cell(s, names);
         let target = s
             .runs
             .iter()
@@ -1047,5 +1113,206 @@ impl CheckedRatio for f64 {
         } else {
             "∞".to_string()
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use experiments::{EnergyStudy, ErrorRun, LyapunovRun};
+
+    fn run(method: &str, h: f64, error: f64, own_steps: bool, g_evals: usize) -> ErrorRun {
+        ErrorRun {
+            method: method.to_string(),
+            h,
+            steps: (1.0 / h).round() as usize,
+            own_steps,
+            error,
+            seconds: 1e-3 / h,
+            sweeps: 0,
+            g_evals,
+            unconverged_steps: 0,
+        }
+    }
+
+    /// T = 1, h = 0.1 and 0.05; DOP853 (its own steps, 24 evaluations of g per h) has the
+    /// smallest error at both, EC2P (8 per h) is next, RKEPC2 last.
+    fn dop853_wins() -> ErrorStudy {
+        let mut runs = Vec::new();
+        for (h, ec, rk, dop) in [(0.1f64, 1e-6, 1e-3, 1e-11), (0.05, 6e-8, 6e-5, 2e-12)] {
+            let n = (1.0 / h).round() as usize;
+            runs.push(run(PRIMARY, h, ec, false, 8 * n));
+            runs.push(run("RKEPC2", h, rk, false, 10 * n));
+            runs.push(run("DOP853", h, dop, true, 24 * n));
+        }
+        ErrorStudy {
+            id: "p1-1a".to_string(),
+            label: "Duffing ω = 5".to_string(),
+            t_end: 1.0,
+            reference: Reference::Exact,
+            reference_error: 0.0,
+            reference_seconds: 0.0,
+            runs,
+            failures: Vec::new(),
+        }
+    }
+
+    fn no_energy(id: &str) -> EnergyStudy {
+        EnergyStudy {
+            id: id.to_string(),
+            label: id.to_string(),
+            t_end: 1.0,
+            h: 0.1,
+            h0: 1.0,
+            runs: Vec::new(),
+            failures: Vec::new(),
+        }
+    }
+
+    fn lyapunov(method: &str, samples: Vec<(f64, f64)>, max_increase: f64) -> LyapunovRun {
+        LyapunovRun {
+            method: method.to_string(),
+            steps: 10,
+            seconds: 0.01,
+            samples,
+            max_dev: 1e-6,
+            max_increase,
+        }
+    }
+
+    fn lyapunov_study(runs: Vec<LyapunovRun>) -> LyapunovStudy {
+        LyapunovStudy {
+            id: "p2-2b".to_string(),
+            label: "wind, dissipative".to_string(),
+            t_end: 1.0,
+            h: 0.05,
+            reference_h: 0.001,
+            reference: lyapunov(
+                &format!("{PRIMARY}-reference"),
+                vec![(0.0, 1.0), (0.5, 0.9), (1.0, 0.8)],
+                -0.1,
+            ),
+            runs,
+            failures: Vec::new(),
+        }
+    }
+
+    fn results(errors: ErrorStudy) -> Results {
+        Results {
+            p1_errors: vec![errors],
+            p1_energy: Vec::new(),
+            p2_errors: ErrorStudy {
+                id: "p2-1a".to_string(),
+                runs: Vec::new(),
+                ..dop853_wins()
+            },
+            p2_energy: no_energy("p2-1b"),
+            p2d_errors: ErrorStudy {
+                id: "p2-2a".to_string(),
+                runs: Vec::new(),
+                ..dop853_wins()
+            },
+            p2d_lyapunov: lyapunov_study(Vec::new()),
+            p3_errors: ErrorStudy {
+                id: "p3a".to_string(),
+                runs: Vec::new(),
+                ..dop853_wins()
+            },
+            p3_energy: no_energy("p3b"),
+        }
+    }
+
+    /// The study's table has DOP853's error as the smallest at every h: the verdict's "at
+    /// equal h" cell names DOP853 (with its cost per h beside EC2P's), and so does the answer.
+    #[test]
+    fn verdict_at_equal_h_names_dop853_when_its_error_is_smallest() {
+        let names = ["EC2P", "RKEPC2", "DOP853"];
+        let s = dop853_wins();
+        let mut table = String::new();
+        error_section(&mut table, &s, &names, &mut Vec::new());
+        assert!(
+            table.contains("| 0.1 | 1.00e-6 | 1.00e-3 | 1.00e-11 |"),
+            "{table}"
+        );
+        assert_eq!(wins_at_equal_h(&s, &names), (vec![("DOP853".into(), 2)], 2));
+
+        let r = results(s);
+        let mut out = String::new();
+        verdict(&mut out, &r, &names);
+        let row = out
+            .lines()
+            .find(|l| l.contains("(`p1-1a`)"))
+            .unwrap_or_else(|| panic!("no row: {out}"));
+        let cells: Vec<&str> = row.trim_matches('|').split(" | ").map(str::trim).collect();
+        assert_eq!(
+            cells[1],
+            "DOP853 2/2 (DOP853 takes its own steps inside each h: 24 evaluations of g per h, \
+             EC2P 8; equal h is not equal work)",
+            "{row}"
+        );
+        assert!(!out.contains("left out"), "{out}");
+
+        let answer = answer(&r, &names);
+        assert!(
+            answer.contains("most accurate at equal step size in 0 of 1 error studies"),
+            "{answer}"
+        );
+        assert!(answer.contains("Duffing ω = 5 (DOP853)"), "{answer}");
+        assert!(
+            answer.contains("DOP853 takes its own steps inside each h"),
+            "{answer}"
+        );
+        assert_eq!(answer.matches(". ").count(), 1, "{answer}");
+    }
+
+    /// EC2P smallest at one h, DOP853 at the other: both are named with their counts, and a
+    /// method that wins nowhere is not.
+    #[test]
+    fn verdict_at_equal_h_counts_each_winner() {
+        let mut s = dop853_wins();
+        for r in s
+            .runs
+            .iter_mut()
+            .filter(|r| r.method == "DOP853" && r.h == 0.1)
+        {
+            r.error = 1e-2;
+        }
+        let names = ["EC2P", "RKEPC2", "DOP853"];
+        let cell = at_equal_h_cell(&s, &names);
+        assert!(
+            cell.starts_with("EC2P 1/2, DOP853 1/2 (DOP853 takes"),
+            "{cell}"
+        );
+        assert!(!cell.contains("RKEPC2"), "{cell}");
+    }
+
+    /// For the dissipative problem H decreases at every sample: the "largest increase"
+    /// column says there is none instead of showing a negative increase.
+    #[test]
+    fn lyapunov_increase_column_for_an_all_decreasing_series() {
+        let samples = vec![(0.0, 1.0), (0.5, 0.9), (1.0, 0.85)];
+        let s = lyapunov_study(vec![lyapunov(PRIMARY, samples, -0.05)]);
+        let mut out = String::new();
+        lyapunov_section(&mut out, &s, &mut Vec::new());
+        assert!(
+            out.contains("| largest increase of H between consecutive samples |"),
+            "{out}"
+        );
+        let rows: Vec<&str> = out.lines().filter(|l| l.starts_with("| EC2P")).collect();
+        assert_eq!(rows.len(), 2, "{out}");
+        for row in &rows {
+            let cells: Vec<&str> = row.trim_matches('|').split(" | ").map(str::trim).collect();
+            assert!(
+                cells[4].starts_with("none (H decreases at every sample, by at least "),
+                "{row}"
+            );
+        }
+        assert_eq!(
+            increase_cell(-0.05),
+            "none (H decreases at every sample, by at least 5.00e-2)"
+        );
+        assert_eq!(increase_cell(0.0), "none (H never increases)");
+        assert_eq!(increase_cell(3e-15), "3.00e-15");
+        assert_eq!(increase_cell(f64::NAN), "—");
     }
 }
