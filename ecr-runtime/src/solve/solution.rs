@@ -349,109 +349,136 @@ impl<S: System> Solution<S> {
         if dense.t[k] == t {
             return Ok(());
         }
-        let dt = t - dense.t[k];
-        if dt < 4.0 * f64::MIN_POSITIVE
-            || dt <= crate::integrate::StepPlan::TIME_ULPS * f64::EPSILON * t.abs()
-        {
-            // Within the rounding of time of the grid point (a step of it would round to
-            // nothing): the grid state moved along the vector field.
-            return super::runs::drift(&*dense.system, out, dt);
-        }
         let check = dense.check.as_deref();
         let (rtol, atol) = dense.tolerance;
         let unit = f64::EPSILON.max(dense.settings.tolerance / 5.0);
-        // A verified solve: the interpolant of the grid where its estimate is within the
-        // tolerance (no step, no φ-bank); else one step of each method below.
-        if let Some(check) = check {
-            let stiffness = dense
-                .stiffness
-                .get_or_init(|| super::runs::stiffness(&*dense.system));
-            let grid = super::interp::Grid {
-                t: &dense.t,
-                answer: &dense.answer,
-                check,
-                d,
-                stiffness,
-            };
-            if let Some(stencil) = grid.stencil(t) {
-                let points = stencil.range();
-                let mut memo = dense.slopes.borrow_mut();
-                let Slopes {
-                    answer: sa,
-                    check: sc,
-                    scratch,
-                } = &mut *memo;
-                if sa.len() != dense.answer.len() {
-                    sa.resize(dense.answer.len(), f64::NAN);
-                    sc.resize(dense.answer.len(), f64::NAN);
-                }
-                let mut fresh = 0;
-                for p in points.clone() {
-                    let at = p * d..(p + 1) * d;
-                    if sa[at.start].is_nan() {
-                        let a = &dense.answer[at.clone()];
-                        super::runs::slope(&*dense.system, a, &mut sa[at.clone()], scratch)?;
-                        super::runs::slope(
-                            &*dense.system,
-                            &check[at.clone()],
-                            &mut sc[at],
-                            scratch,
-                        )?;
-                        fresh += 2;
-                    }
-                }
-                if fresh > 0 {
-                    let (n, g) = dense.evals.get();
-                    dense.evals.set((n, g + fresh));
-                }
-                let at = points.start * d..points.end * d;
-                let e = grid.value(
-                    t,
-                    stencil,
-                    &sa[at.clone()],
-                    &sc[at],
-                    (rtol, atol),
-                    unit,
-                    k + 1,
-                    out,
-                );
-                if e <= 1.0 {
-                    return Ok(());
+        let system = &*dense.system;
+        // The slopes of the interpolant's stencil (a verified solve), computed once per grid
+        // point and kept.
+        let stiffness = dense
+            .stiffness
+            .get_or_init(|| super::runs::stiffness(system));
+        let grid = check.map(|check| super::interp::Grid {
+            t: &dense.t,
+            answer: &dense.answer,
+            check,
+            d,
+            stiffness,
+        });
+        let stencil = grid.as_ref().and_then(|g| g.stencil(t));
+        let mut memo = dense.slopes.borrow_mut();
+        if let (Some(stencil), Some(check)) = (stencil, check) {
+            let Slopes {
+                answer: sa,
+                check: sc,
+                scratch,
+            } = &mut *memo;
+            if sa.len() != dense.answer.len() {
+                sa.resize(dense.answer.len(), f64::NAN);
+                sc.resize(dense.answer.len(), f64::NAN);
+            }
+            let mut fresh = 0;
+            for p in stencil.range() {
+                let at = p * d..(p + 1) * d;
+                if sa[at.start].is_nan() {
+                    super::runs::slope(
+                        system,
+                        &dense.answer[at.clone()],
+                        &mut sa[at.clone()],
+                        scratch,
+                    )?;
+                    super::runs::slope(system, &check[at.clone()], &mut sc[at], scratch)?;
+                    fresh += 2;
                 }
             }
-            out.copy_from_slice(answer);
+            if fresh > 0 {
+                let (n, g) = dense.evals.get();
+                dense.evals.set((n, g + fresh));
+            }
         }
-        let cache = Arc::new(super::SolveCache::<S>::new(4));
-        let mut runs = super::runs::PairRuns::new(
-            &*dense.system,
-            dense.r,
-            check.is_some(),
-            dt,
-            SolverSettings {
-                predictor: crate::stepper::Predictor::Constant,
-                banks: super::between_banks(rtol, atol, check.is_some()),
-                ..dense.settings
-            },
-            super::between_banks(rtol, atol, check.is_some()),
-            &cache,
-        )?;
+        let interp = match (grid, stencil) {
+            (Some(grid), Some(stencil)) => {
+                let at = stencil.range().start * d..stencil.range().end * d;
+                Some((grid, stencil, &memo.answer[at.clone()], &memo.check[at]))
+            }
+            _ => None,
+        };
+        let banks = super::between_banks(rtol, atol, check.is_some());
+        let settings = SolverSettings {
+            predictor: crate::stepper::Predictor::Constant,
+            banks,
+            ..dense.settings
+        };
+        let check_k = check.map_or(answer, |c| &c[k * d..(k + 1) * d]);
         let mut cost = super::runs::Cost::default();
-        let mut check_out =
-            check.map_or_else(|| answer.to_vec(), |c| c[k * d..(k + 1) * d].to_vec());
-        super::runs::Runs::step(&mut runs, out, &mut check_out, &mut cost)?;
+        let e = super::window::value_between(
+            super::window::ValueAt {
+                t,
+                base: (dense.t[k], answer, check_k, 0.0),
+                n: k,
+                tolerance: (rtol, atol),
+                unit,
+                verified: check.is_some(),
+            },
+            interp,
+            &mut FreshSteps {
+                system,
+                r: dense.r,
+                check: check.is_some(),
+                settings,
+                banks,
+                cost: &mut cost,
+            },
+            out,
+        )?;
         let (n, g) = dense.evals.get();
         dense
             .evals
             .set((n + cost.total_steps(), g + cost.total_g_evals()));
-        if check.is_some() {
-            let e = super::runs::estimate((rtol, atol), unit, out, &check_out, k + 1);
-            if e.is_nan() || e > 1.0 {
-                return Err(Error::Unverified(format!(
-                    "the estimated error at t = {t:?} is {e:.3e} times the tolerance"
-                )));
-            }
+        if e.is_nan() || e > 1.0 {
+            return Err(Error::Unverified(format!(
+                "the estimated error at t = {t:?} is {e:.3e} times the tolerance"
+            )));
         }
         Ok(())
+    }
+}
+
+/// Partial steps for [`Solution::at`]: steppers of both runs at the step's length, their banks
+/// built for it (in a cache of their own: a length is met once).
+struct FreshSteps<'a, S: System> {
+    system: &'a S,
+    r: usize,
+    check: bool,
+    settings: SolverSettings,
+    banks: crate::operator::BankArithmetic,
+    cost: &'a mut super::runs::Cost,
+}
+
+impl<S: System> super::window::PartialSteps for FreshSteps<'_, S> {
+    fn drift(&mut self, y: &mut [f64], dt: f64) -> Result<()> {
+        super::runs::drift(self.system, y, dt)
+    }
+
+    fn partial(
+        &mut self,
+        from: (&[f64], &[f64]),
+        dt: f64,
+        out: (&mut [f64], &mut [f64]),
+    ) -> Result<()> {
+        let cache = Arc::new(super::SolveCache::<S>::new(4));
+        let mut runs = super::runs::PairRuns::new(
+            self.system,
+            self.r,
+            self.check,
+            dt,
+            self.settings,
+            self.banks,
+            &cache,
+        )?;
+        out.0.copy_from_slice(from.0);
+        out.1.copy_from_slice(from.1);
+        super::runs::Runs::step(&mut runs, out.0, out.1, self.cost)
     }
 }
 

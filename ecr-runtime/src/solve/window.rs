@@ -238,57 +238,144 @@ pub(super) fn between(
     trail: Option<&mut Trail>,
     cost: &mut Cost,
 ) -> Result<Point> {
-    let dt = t - base.t;
     let d = base.answer.len();
-    if dt <= 0.0 {
-        return Ok(Point {
+    let tolerance = (ctx.options.rtol, ctx.options.atol);
+    let mut interp = None;
+    if let Some(trail) = trail {
+        if let Some(stencil) = trail.grid(d, &[]).stencil(t) {
+            trail.slopes(stencil.range(), runs, cost)?;
+            let stiffness = runs.stiffness().to_vec();
+            interp = Some((&*trail, stencil, stiffness));
+        }
+    }
+    let mut y = vec![0.0; d];
+    let est = value_between(
+        ValueAt {
             t,
-            y: base.answer.clone(),
-            est: base.est,
-        });
+            base: (base.t, &base.answer, &base.check, base.est),
+            n,
+            tolerance,
+            unit: ctx.unit,
+            verified: ctx.verified,
+        },
+        interp.as_ref().map(|(trail, stencil, stiffness)| {
+            let (sa, sc) = trail.slopes_at(stencil.range());
+            (trail.grid(d, stiffness), *stencil, sa, sc)
+        }),
+        &mut RunSteps(runs, cost),
+        &mut y,
+    )?;
+    Ok(Point { t, y, est })
+}
+
+/// What a value between grid points is asked for: the time, the grid point before it (its
+/// time, the answer's and the check's states and its estimate), the steps to it, the tolerance
+/// and the round-off model's unit.
+pub(super) struct ValueAt<'a> {
+    pub(super) t: f64,
+    pub(super) base: (f64, &'a [f64], &'a [f64], f64),
+    pub(super) n: usize,
+    pub(super) tolerance: (f64, f64),
+    pub(super) unit: f64,
+    /// A checked run (else the estimate is 0 and no interpolant is tried).
+    pub(super) verified: bool,
+}
+
+/// A stencil of the grid and its slopes (answer's, check's at the stencil's points).
+pub(super) type Interp<'g> = (
+    super::interp::Grid<'g>,
+    super::interp::Stencil,
+    &'g [f64],
+    &'g [f64],
+);
+
+/// How a value between grid points is reached where the interpolant does not serve.
+pub(super) trait PartialSteps {
+    /// `y` moved along the vector field by `dt` (a time within the rounding of a grid point's).
+    ///
+    /// # Errors
+    /// [`Error::NonFinite`] if the field is not finite there.
+    fn drift(&mut self, y: &mut [f64], dt: f64) -> Result<()>;
+    /// One step of length `dt` of the answer's method from `from.0` into `out.0` and of the
+    /// check's from `from.1` into `out.1`.
+    ///
+    /// # Errors
+    /// What the steps report.
+    fn partial(
+        &mut self,
+        from: (&[f64], &[f64]),
+        dt: f64,
+        out: (&mut [f64], &mut [f64]),
+    ) -> Result<()>;
+}
+
+/// The run's own steppers for values between grid points, with the cost counted.
+struct RunSteps<'r>(&'r mut dyn Runs, &'r mut Cost);
+
+impl PartialSteps for RunSteps<'_> {
+    fn drift(&mut self, y: &mut [f64], dt: f64) -> Result<()> {
+        self.0.drift(y, dt)
+    }
+    fn partial(
+        &mut self,
+        from: (&[f64], &[f64]),
+        dt: f64,
+        out: (&mut [f64], &mut [f64]),
+    ) -> Result<()> {
+        self.0.partial(from, dt, out, self.1)
+    }
+}
+
+/// The one rule for a value between grid points, used by outputs (`t_eval`), events and
+/// [`Solution::at`](super::Solution::at): the grid value where t is its time; the grid value
+/// moved along the field (`drift`) where t is within the rounding of it; the interpolant of
+/// the grid where its estimate is at most [`INTERP_MAX`] tolerances; else one partial step of
+/// each run from the grid point ([`PartialSteps`]), whose difference is the estimate. The
+/// value goes to `out`; returns its estimate in tolerances.
+pub(super) fn value_between(
+    at: ValueAt<'_>,
+    interp: Option<Interp<'_>>,
+    steps: &mut dyn PartialSteps,
+    out: &mut [f64],
+) -> Result<f64> {
+    let ValueAt {
+        t,
+        base: (t_base, answer, check, est),
+        n,
+        tolerance,
+        unit,
+        verified,
+    } = at;
+    let dt = t - t_base;
+    out.copy_from_slice(answer);
+    if dt <= 0.0 {
+        return Ok(est);
     }
     if dt < 4.0 * f64::MIN_POSITIVE
         || dt <= crate::integrate::StepPlan::TIME_ULPS * f64::EPSILON * t.abs()
     {
-        let mut y = base.answer.clone();
-        runs.drift(&mut y, dt)?;
-        return Ok(Point {
-            t,
-            y,
-            est: base.est,
-        });
+        steps.drift(out, dt)?;
+        return Ok(est);
     }
-    let mut ya = vec![0.0; d];
     // The interpolant of the grid where its estimate holds (no step, no φ-bank).
-    if let Some(trail) = trail {
-        if let Some(stencil) = trail.grid(d, &[]).stencil(t) {
-            trail.slopes(stencil.range(), runs, cost)?;
-            let tolerance = (ctx.options.rtol, ctx.options.atol);
-            let (sa, sc) = trail.slopes_at(stencil.range());
-            let est = trail.grid(d, runs.stiffness()).value(
-                t,
-                stencil,
-                sa,
-                sc,
-                tolerance,
-                ctx.unit,
-                n + 1,
-                &mut ya,
-            );
-            if est <= INTERP_MAX {
-                return Ok(Point { t, y: ya, est });
-            }
+    if let Some((grid, stencil, sa, sc)) = interp.filter(|_| verified) {
+        let e = grid.value(t, stencil, sa, sc, tolerance, unit, n + 1, out);
+        if e <= INTERP_MAX {
+            return Ok(e);
         }
     }
-    let mut yc = vec![0.0; d];
-    runs.partial((&base.answer, &base.check), dt, (&mut ya, &mut yc), cost)?;
-    let est = ctx.estimate(&ya, &yc, n + 1);
-    if est.is_nan() {
+    let mut yc = vec![0.0; out.len()];
+    steps.partial((answer, check), dt, (out, &mut yc))?;
+    if !verified {
+        return Ok(0.0);
+    }
+    let e = super::runs::estimate(tolerance, unit, out, &yc, n + 1);
+    if e.is_nan() {
         return Err(Error::NonFinite(
             "the estimate of the error between grid points",
         ));
     }
-    Ok(Point { t, y: ya, est })
+    Ok(e)
 }
 
 /// A value between grid points takes the interpolant where its estimate is at most this many
