@@ -37,6 +37,19 @@ const WINDOWS_MIN: f64 = 32.0;
 /// The order by which a restart scales its step size.
 const P_RESTART: f64 = 4.0;
 
+/// A restart makes the step at most this much smaller (a projection of a chaotic run's
+/// estimate can call for steps that would cost thousands of times the run).
+const RESTART_MIN: f64 = 0.5;
+
+/// The step of a run started again after one whose estimate projects to `TARGET / factor`:
+/// h·factor^(1/P_RESTART), between RESTART_MIN and 0.7 of h.
+fn h_next(h: f64, factor: f64) -> f64 {
+    h * factor
+        .clamp(1e-12, 1.0)
+        .powf(1.0 / P_RESTART)
+        .clamp(RESTART_MIN, 0.7)
+}
+
 /// Step sizes are taken from the ladder h₀·2^(k/LADDER): a step size met again finds its
 /// banks in the cache.
 const LADDER: f64 = 8.0;
@@ -200,7 +213,7 @@ fn attempts(
                 // The error made so far was too large: smaller steps from t₀, at least 30 %
                 // smaller (far from the asymptotic regime, where the cheapest runs are, the
                 // estimate falls more slowly than h^p).
-                h *= factor.clamp(1e-6, 1.0).powf(1.0 / P_RESTART).min(0.7);
+                h = h_next(h, factor);
                 last_reason = reason;
             }
             Attempt::Failed { record, reason } => {
@@ -214,6 +227,27 @@ fn attempts(
         }
     }
     unreachable!("the last attempt returns ({last_reason})")
+}
+
+/// The estimate at t_end projected from a run that stopped at `t` with estimate `worst`, from
+/// the estimates after its kept windows: where the estimate grew more than twofold over the
+/// second half of the time run (the difference of two runs amplified by the flow: chaos, a
+/// separatrix), at that exponential rate; otherwise linearly in time (an error made at a
+/// steady rate). Capped at 1e12.
+fn project(history: &[(f64, f64)], t: f64, worst: f64, ctx: &Ctx<'_>) -> f64 {
+    let span = ctx.t_end - ctx.t0;
+    let elapsed = (t - ctx.t0).max(f64::MIN_POSITIVE);
+    let linear = worst * (span / elapsed).max(1.0);
+    let mid = ctx.t0 + 0.5 * elapsed;
+    let i = history.partition_point(|&(tk, _)| tk <= mid);
+    let exponential = match i.checked_sub(1).map(|k| history[k]) {
+        Some((tm, wm)) if wm > 0.0 && worst > 2.0 * wm && t > tm => {
+            let rate = (worst / wm).ln() / (t - tm);
+            worst * (rate * (ctx.t_end - t)).min(27.6).exp()
+        }
+        _ => 0.0,
+    };
+    linear.max(exponential).min(1e12)
 }
 
 /// The solution of a span within the rounding of time: y₀, moved along the field.
@@ -320,6 +354,9 @@ fn run(
     let mut recent = Recent::default();
     // The feature inside one step being passed with smaller steps, if any.
     let mut feature: Option<Feature> = None;
+    // The estimate after each kept window, (t, worst), for the projection of a run that
+    // starts again.
+    let mut history: Vec<(f64, f64)> = Vec::new();
     while state.t < ctx.t_end - ctx.same_time && !record.ended() {
         let stop = ctx.next_stop(state.t);
         let room = stop - state.t;
@@ -504,8 +541,7 @@ fn run(
             }
             if over {
                 stats.discard(&cost);
-                let elapsed = (last.t - ctx.t0).max(duration);
-                let projected = worst.max(LIMIT) * (span / elapsed).max(1.0);
+                let projected = project(&history, last.t, worst.max(LIMIT), ctx);
                 return Ok(Attempt::Again {
                     record,
                     factor: TARGET / projected,
@@ -634,6 +670,7 @@ fn run(
         let duration = state.t - since;
         let rate = if recent.len() >= 3 { sum - top } else { sum } / duration;
         let projected = worst + rate * left;
+        history.push((state.t, worst));
         if projected > LIMIT && elapsed >= span / 32.0 && !permissive {
             let budget = 0.95 * LIMIT - worst;
             let factor = if budget > 0.0 {
@@ -642,6 +679,7 @@ fn run(
                 0.0
             };
             if factor < 0.125 && !record.shown {
+                let projected = projected.max(project(&history, state.t, worst, ctx));
                 return Ok(Attempt::Again {
                     record,
                     factor: TARGET / projected,

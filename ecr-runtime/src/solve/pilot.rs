@@ -22,6 +22,11 @@ const BRACKET_DONE: f64 = 1.3;
 /// Pilot rounds per order (each rescales the step from the growth it saw).
 pub(super) const PILOT_ROUNDS: usize = 4;
 
+/// The pilot stops (rounds and orders) once it has spent this share of what the run it
+/// projects will cost, keeping the best measured step: on a short problem a tour of the orders
+/// costs more than a neighbouring order would save.
+const PILOT_SHARE: f64 = 0.08;
+
 /// The first order tried for a tolerance: one more r per two and a half decades.
 pub(super) fn first_order(ctx: &Ctx<'_>, lo: usize, hi: usize) -> usize {
     let tol = ctx
@@ -29,7 +34,7 @@ pub(super) fn first_order(ctx: &Ctx<'_>, lo: usize, hi: usize) -> usize {
         .rtol
         .min(ctx.options.atol)
         .max(ctx.options.rtol.max(ctx.options.atol) * 1e-3);
-    let guess = 2.0 + (-tol.max(1e-300).log10() / 2.5).round();
+    let guess = 3.0 + (-tol.max(1e-300).log10() / 2.5).round();
     (guess.max(2.0) as usize).clamp(lo, hi)
 }
 
@@ -134,7 +139,10 @@ pub(super) fn pilot(
                 )
             });
             let closed = good > 0.0 && (bad / good <= BRACKET_DONE || good >= top);
-            if closed || next == h {
+            // The run this pilot projects, both runs over the span at the best step measured.
+            let spent = stats.pilot_g_evals as f64;
+            let over_budget = good > 0.0 && spent > PILOT_SHARE * per_step * span / good;
+            if closed || next == h || over_budget {
                 break;
             }
             h = next;
@@ -163,6 +171,9 @@ pub(super) fn pilot(
                 break;
             }
             r = next as usize;
+            if stats.pilot_g_evals as f64 > PILOT_SHARE * best * span {
+                break;
+            }
             let (hr, cr, _) = measure(r, h, stats)?;
             tried.push((r, hr, cr));
             if cr >= best {
