@@ -166,10 +166,10 @@ fn product_error(a: &[f64], t: f64, x: &DMatrix<f64>) -> DMatrix<f64> {
 }
 
 impl Dense {
-    fn bank(&self, h: f64, taus: &[f64], p: usize, f: NodeFunctions) -> Result<DenseBank> {
+    /// The step and nodes in range, and room for the bank: its (p + 1) matrices and a
+    /// propagator tail per node, and the scaling and squaring's few d × d working matrices.
+    fn check_bank(&self, h: f64, taus: &[f64], p: usize) -> Result<()> {
         check_bank_scale(h, taus, self.a.amax())?;
-        // The bank's (p + 1) matrices and a propagator tail per node, and the scaling and
-        // squaring's few d × d working matrices.
         let d = self.a.nrows();
         ensure_allocatable(
             &format!(
@@ -180,7 +180,11 @@ impl Dense {
                 .checked_mul(p + 2)
                 .and_then(|m| m.checked_add(8))
                 .and_then(|m| m.checked_mul(d.checked_mul(d)?)),
-        )?;
+        )
+    }
+
+    fn bank(&self, h: f64, taus: &[f64], p: usize, f: NodeFunctions) -> Result<DenseBank> {
+        self.check_bank(h, taus, p)?;
         let mut phis = Vec::with_capacity(taus.len() * (p + 1));
         let mut lo = Vec::with_capacity(taus.len());
         for (i, tau) in taus.iter().enumerate() {
@@ -204,18 +208,8 @@ impl Dense {
 impl Dense {
     /// The bank in f64 ([`BankArithmetic::F64`]) through [`DenseForm`].
     fn bank_f64(&self, h: f64, taus: &[f64], p: usize, f: NodeFunctions) -> Result<DenseBank> {
-        check_bank_scale(h, taus, self.a.amax())?;
+        self.check_bank(h, taus, p)?;
         let d = self.a.nrows();
-        ensure_allocatable(
-            &format!(
-                "the φ-bank of a dense {d} × {d} operator ({} nodes, p = {p})",
-                taus.len()
-            ),
-            taus.len()
-                .checked_mul(p + 2)
-                .and_then(|m| m.checked_add(8))
-                .and_then(|m| m.checked_mul(d.checked_mul(d)?)),
-        )?;
         let form = self.form();
         let tmax = taus.iter().fold(0.0f64, |m, t| m.max(t.abs()));
         let Some((normal, _)) = form.route(&self.a, tmax * h) else {

@@ -141,9 +141,10 @@ pub struct SolverSettings {
     /// of the serial path. Default [`PARALLEL_MIN_DIM`], measured; `usize::MAX`: always serial.
     /// Smaller systems take the serial path unchanged.
     pub parallel_min_dim: usize,
-    /// The arithmetic of the φ-banks ([`LinearOperator::kernel_bank_in`](crate::operator::LinearOperator::kernel_bank_in)):
-    /// [`BankArithmetic::Extended`] (the default) or f64 where the bank's error is far below
-    /// what the steps are used for.
+    /// The arithmetic of the φ-banks
+    /// ([`LinearOperator::kernel_bank_in`](crate::operator::LinearOperator::kernel_bank_in)):
+    /// [`BankArithmetic::Extended`](crate::operator::BankArithmetic::Extended) (the default)
+    /// or f64 where the bank's error is far below what the steps are used for.
     pub banks: crate::operator::BankArithmetic,
 }
 
