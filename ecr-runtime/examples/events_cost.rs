@@ -1,0 +1,34 @@
+//! What an event costs in evaluations of g: Lotka–Volterra u' = u(2/3 − 4/3 v),
+//! v' = v(u − 1) from (0.9, 0.9) over (0, 50), solved to a tolerance with and without the event
+//! u = 1 (its crossings located to a few ulps of t), all evaluations of g of each solve.
+//!
+//! ```text
+//! cargo run --release -p ecr-runtime --example events_cost
+//! ```
+
+use ecr_runtime::operator::Zero;
+use ecr_runtime::solve::{Event, Options, Problem};
+use ecr_runtime::system::Semilinear;
+
+fn main() {
+    let system = Semilinear::new(Zero::new(2), |y: &[f64], g: &mut [f64]| {
+        g[0] = y[0] * (2.0 / 3.0 - 4.0 / 3.0 * y[1]);
+        g[1] = y[1] * (y[0] - 1.0);
+    });
+    let problem = Problem::new(system, [0.9, 0.9], (0.0, 50.0)).expect("a valid problem");
+    for tol in [1e-6, 1e-8, 1e-10] {
+        let plain = problem
+            .solve(&Options::tolerance(tol))
+            .expect("verified")
+            .stats;
+        let with = problem
+            .solve(&Options::tolerance(tol).event(Event::new(|_, y| y[0] - 1.0)))
+            .expect("verified");
+        let (a, b) = (plain.total_g_evals(), with.stats.total_g_evals());
+        println!(
+            "tol {tol:e}: {} crossings; g without the event {a}, with it {b}: {:+.1} %",
+            with.events.len(),
+            100.0 * (b as f64 / a as f64 - 1.0)
+        );
+    }
+}
