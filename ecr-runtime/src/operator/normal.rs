@@ -1,5 +1,5 @@
-//! The f64 route of a dense operator's banks: a matrix that is normal after a diagonal
-//! similarity (balancing) takes its functions from its real Schur form, computed once per
+//! The f64 routes of a dense operator's banks: a matrix that is normal after a diagonal
+//! similarity (balancing) takes its functions from its eigenvectors, computed once per
 //! operator; any other matrix keeps scaling and squaring, in f64.
 //!
 //! # The normal route
@@ -25,14 +25,14 @@
 //! "Normal to working precision" is measured, not assumed: the off-diagonal part of `UᴴBU`
 //! (what the route drops) must be at most `NORMAL_C · d · ε · ‖B‖_F` in Frobenius norm. The
 //! route's error is then the rounding of U and of the products and the eigenvalues' own error
-//! (absolute, ε‖B‖): [`DenseForm::bound`] states it, and tests/it/f64_banks.rs measures it
+//! (absolute, ε‖B‖): [`DenseForm::route`] states it, and tests/it/f64_banks.rs measures it
 //! against the double-double banks.
 //!
 //! # The general route
 //!
 //! Scaling and modified squaring in f64 ([`phi_dense`](crate::phi::phi_dense) and the kernels'
 //! doubling, [`LegendreKernels::psi_dense`](crate::phi::LegendreKernels::psi_dense)), applied
-//! to the balanced matrix where balancing lowers its 1-norm.
+//! to the balanced matrix where balancing halves its 1-norm.
 
 use nalgebra::DMatrix;
 use num_complex::Complex64;
@@ -40,7 +40,7 @@ use num_complex::Complex64;
 use super::entries::NodeFunctions;
 use crate::error::Result;
 
-/// The dropped part of the Schur form may be this many `d ε ‖B‖_F`.
+/// The off-diagonal part of `UᴴBU` (what the normal route drops) may be this many `d ε ‖B‖_F`.
 const NORMAL_C: f64 = 16.0;
 
 /// An f64 route serves a bank when its stated error is at most this
@@ -67,7 +67,7 @@ pub(crate) enum DenseForm {
         lambda: Vec<Complex64>,
         /// The largest |λ| (the 2-norm of the balanced matrix).
         radius: f64,
-        /// D for the general route where it serves instead (see [`DenseForm::bound`]).
+        /// D for the general route where it serves instead (see [`DenseForm::route`]).
         general: Option<Vec<f64>>,
     },
     /// Scaling and squaring, on `D⁻¹AD` if `scale` is given.
