@@ -45,7 +45,7 @@ fn main() {
     }
     let el = t1.elapsed().as_secs_f64();
     println!(
-        "at: {:.2} us per call ({s:.3}), dense evals {:?}",
+        "at: {:.2} us per call (sum of q {s:.3}), (steps, g) between grid points {:?}",
         el / n as f64 * 1e6,
         sol.dense_evaluations()
     );

@@ -71,7 +71,7 @@ impl Dense {
     /// largest |λ|), `16 ε (1 + ‖hA‖₁)` on scaling and squaring, whichever serves, or `None`
     /// where neither is within 1e−12: those banks take the default route.
     pub fn f64_bank_bound(&self, h: f64) -> Option<f64> {
-        self.form().route(&self.a, h).map(|(_, b)| b)
+        self.form().route(h).map(|(_, b)| b)
     }
 
     fn form(&self) -> &DenseForm {
@@ -212,7 +212,7 @@ impl Dense {
         let d = self.a.nrows();
         let form = self.form();
         let tmax = taus.iter().fold(0.0f64, |m, t| m.max(t.abs()));
-        let Some((normal, _)) = form.route(&self.a, tmax * h) else {
+        let Some((normal, _)) = form.route(tmax * h) else {
             return self.bank(h, taus, p, f);
         };
         let mut phis = Vec::with_capacity(taus.len() * (p + 1));

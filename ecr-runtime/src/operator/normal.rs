@@ -55,23 +55,30 @@ const BALANCE_SWEEPS: usize = 40;
 
 /// How the f64 banks of one dense matrix are computed.
 #[derive(Clone, Debug)]
-pub(crate) enum DenseForm {
-    /// `A = D U Λ Uᴴ D⁻¹` with U unitary.
-    Normal {
-        /// The diagonal of D.
-        scale: Vec<f64>,
-        /// The real and imaginary parts of U.
-        ur: DMatrix<f64>,
-        ui: DMatrix<f64>,
-        /// The eigenvalues.
-        lambda: Vec<Complex64>,
-        /// The largest |λ| (the 2-norm of the balanced matrix).
-        radius: f64,
-        /// D for the general route where it serves instead (see [`DenseForm::route`]).
-        general: Option<Vec<f64>>,
-    },
-    /// Scaling and squaring, on `D⁻¹AD` if `scale` is given.
-    General { scale: Option<Vec<f64>> },
+pub(crate) struct DenseForm {
+    /// The diagonal of D (balancing).
+    scale: Vec<f64>,
+    /// Whether scaling and squaring runs on `D⁻¹AD` (where that halves the 1-norm).
+    balanced: bool,
+    /// The 1-norm of the matrix scaling and squaring runs on.
+    norm1: f64,
+    /// `D⁻¹AD = U Λ Uᴴ` with U unitary, where the matrix is normal after balancing.
+    spectrum: Option<Spectrum>,
+}
+
+/// The eigendecomposition of a normal `D⁻¹AD`.
+#[derive(Clone, Debug)]
+struct Spectrum {
+    /// The real and imaginary parts of U.
+    ur: DMatrix<f64>,
+    ui: DMatrix<f64>,
+    /// The eigenvalues.
+    lambda: Vec<Complex64>,
+    /// For each eigenvalue, an earlier one whose conjugate it is to the eigenvalues' own
+    /// error (4 ε ρ): it takes the conjugate of that one's function values.
+    partner: Vec<Option<usize>>,
+    /// The largest |λ| (the 2-norm of the balanced matrix).
+    radius: f64,
 }
 
 /// Osborne's balancing in the 2-norm: `(D, D⁻¹AD)`, D's entries unrounded.
@@ -129,29 +136,20 @@ fn norm1(a: &DMatrix<f64>) -> f64 {
 /// γ of `H = S + iγK`: irrational, so that eigenvalues of B that differ stay apart in H.
 const GAMMA: f64 = 0.618_033_988_749_894_9;
 
-impl DenseForm {
-    /// The form of `a` (square, finite): normal after balancing, or general.
-    pub(crate) fn of(a: &DMatrix<f64>) -> Self {
-        let d = a.nrows();
-        if d == 0 {
-            return DenseForm::General { scale: None };
-        }
-        let (scale, b) = balance(a);
+impl Spectrum {
+    /// The eigendecomposition of `b` if it is normal to working precision, else `None`.
+    fn of(b: &DMatrix<f64>) -> Option<Self> {
+        let d = b.nrows();
         let norm = b.norm();
-        if norm == 0.0 || !norm.is_finite() {
-            return DenseForm::General { scale: None };
+        if d == 0 || norm == 0.0 || !norm.is_finite() {
+            return None;
         }
-        // The general route balances where that halves the 1-norm.
-        let balanced = norm1(&b) < 0.5 * norm1(a);
-        let general = || DenseForm::General {
-            scale: balanced.then(|| scale.clone()),
-        };
         let limit = NORMAL_C * d as f64 * f64::EPSILON * norm;
         // A quick test first: the commutator of a normal matrix vanishes.
         let bt = b.transpose();
-        let comm = (&bt * &b - &b * &bt).norm();
+        let comm = (&bt * b - b * &bt).norm();
         if comm > 64.0 * limit * norm {
-            return general();
+            return None;
         }
         let h = DMatrix::from_fn(d, d, |r, c| {
             Complex64::new(
@@ -159,12 +157,8 @@ impl DenseForm {
                 0.5 * GAMMA * (b[(r, c)] - b[(c, r)]),
             )
         });
-        let Some(eig) = nalgebra::linalg::SymmetricEigen::try_new(h, f64::EPSILON, 0) else {
-            return general();
-        };
-        let u = eig.eigenvectors;
-        let bc = b.map(|v| Complex64::new(v, 0.0));
-        let t = u.adjoint() * bc * &u;
+        let u = nalgebra::linalg::SymmetricEigen::try_new(h, f64::EPSILON, 0)?.eigenvectors;
+        let t = u.adjoint() * b.map(|v| Complex64::new(v, 0.0)) * &u;
         let mut dropped = 0.0f64;
         for c in 0..d {
             for r in 0..d {
@@ -174,23 +168,48 @@ impl DenseForm {
             }
         }
         if dropped.is_nan() || dropped > limit {
-            return general();
+            return None;
         }
         let lambda: Vec<Complex64> = (0..d).map(|k| t[(k, k)]).collect();
         let radius = lambda.iter().fold(0.0f64, |m, l| m.max(l.norm()));
-        DenseForm::Normal {
-            general: balanced.then(|| scale.clone()),
-            scale,
+        let near = 4.0 * f64::EPSILON * radius;
+        let partner = (0..d)
+            .map(|k| {
+                let l = lambda[k];
+                (l.im != 0.0)
+                    .then(|| (0..k).find(|&j| (lambda[j].conj() - l).norm() <= near))
+                    .flatten()
+            })
+            .collect();
+        Some(Spectrum {
             ur: u.map(|z| z.re),
             ui: u.map(|z| z.im),
             lambda,
+            partner,
             radius,
+        })
+    }
+}
+
+impl DenseForm {
+    /// The form of `a` (square, finite): its balancing, and its eigendecomposition where it
+    /// is normal after balancing.
+    pub(crate) fn of(a: &DMatrix<f64>) -> Self {
+        let (scale, b) = balance(a);
+        let (na, nb) = (norm1(a), norm1(&b));
+        // Scaling and squaring balances where that halves the 1-norm.
+        let balanced = nb < 0.5 * na;
+        DenseForm {
+            spectrum: Spectrum::of(&b),
+            scale,
+            balanced,
+            norm1: if balanced { nb } else { na },
         }
     }
 
     /// `true` if the matrix is normal after balancing.
     pub(crate) fn is_normal(&self) -> bool {
-        matches!(self, DenseForm::Normal { .. })
+        self.spectrum.is_some()
     }
 
     /// The route of an f64 bank whose largest step length is `th`, and its stated error
@@ -201,28 +220,15 @@ impl DenseForm {
     /// on the left half plane) is at most [`F64_BOUND_MAX`]; else scaling and squaring where
     /// `16 ε (1 + ‖thA‖₁)` (its measured error, tests/it/f64_banks.rs, with room) is; else
     /// `None`: the bank takes the default route.
-    pub(crate) fn route(&self, a: &DMatrix<f64>, th: f64) -> Option<(bool, f64)> {
+    pub(crate) fn route(&self, th: f64) -> Option<(bool, f64)> {
         let th = th.abs();
-        if let DenseForm::Normal { ur, radius, .. } = self {
-            let b = 8.0 * ur.nrows() as f64 * f64::EPSILON * (1.0 + radius * th);
+        if let Some(sp) = &self.spectrum {
+            let b = 8.0 * sp.ur.nrows() as f64 * f64::EPSILON * (1.0 + sp.radius * th);
             if b <= F64_BOUND_MAX {
                 return Some((true, b));
             }
         }
-        let norm = match self {
-            DenseForm::Normal {
-                general: Some(s), ..
-            }
-            | DenseForm::General { scale: Some(s) } => (0..a.ncols())
-                .map(|c| {
-                    (0..a.nrows())
-                        .map(|r| (a[(r, c)] * (s[c] / s[r])).abs())
-                        .sum::<f64>()
-                })
-                .fold(0.0, f64::max),
-            _ => norm1(a),
-        };
-        let b = 16.0 * f64::EPSILON * (1.0 + norm * th);
+        let b = 16.0 * f64::EPSILON * (1.0 + self.norm1 * th);
         (b <= F64_BOUND_MAX).then_some((false, b))
     }
 
@@ -238,17 +244,9 @@ impl DenseForm {
         p: usize,
         normal: bool,
     ) -> Result<Vec<DMatrix<f64>>> {
-        match self {
-            DenseForm::Normal {
-                scale,
-                ur,
-                ui,
-                lambda,
-                radius,
-                ..
-            } if normal => spectral_node(scale, ur, ui, lambda, *radius, f, i, th, p),
-            DenseForm::Normal { general, .. } => general_node(a, general.as_deref(), f, i, th, p),
-            DenseForm::General { scale } => general_node(a, scale.as_deref(), f, i, th, p),
+        match &self.spectrum {
+            Some(sp) if normal => spectral_node(&self.scale, sp, f, i, th, p),
+            _ => general_node(a, self.balanced.then_some(&self.scale[..]), f, i, th, p),
         }
     }
 }
@@ -280,37 +278,37 @@ fn general_node(
 }
 
 /// The normal route at one node: `D Re(U f(τhΛ) Uᴴ) D⁻¹` for the p + 1 functions.
-#[allow(clippy::too_many_arguments)]
 fn spectral_node(
     scale: &[f64],
-    ur: &DMatrix<f64>,
-    ui: &DMatrix<f64>,
-    lambda: &[Complex64],
-    radius: f64,
+    sp: &Spectrum,
     f: &NodeFunctions,
     i: usize,
     th: f64,
     p: usize,
 ) -> Result<Vec<DMatrix<f64>>> {
+    let Spectrum {
+        ur,
+        ui,
+        lambda,
+        partner,
+        radius,
+    } = sp;
     let d = ur.nrows();
     // fl[k (p + 1) + j] = f_j(τhλ_k).
     let mut fl = vec![Complex64::new(0.0, 0.0); d * (p + 1)];
     let mut rbuf = vec![0.0f64; p + 1];
-    // A complex pair's second eigenvalue takes the conjugate of the first's values where
-    // the two agree to the eigenvalues' own error (ε ρ): half the scalar work of a real matrix.
-    let near = 4.0 * f64::EPSILON * radius;
     for k in 0..d {
         let l = lambda[k];
         let (done, row) = fl.split_at_mut(k * (p + 1));
         let row = &mut row[..p + 1];
-        if l.im == 0.0 {
+        if let Some(j) = partner[k] {
+            for (o, v) in row.iter_mut().zip(&done[j * (p + 1)..(j + 1) * (p + 1)]) {
+                *o = v.conj();
+            }
+        } else if l.im == 0.0 {
             f.real(i, th * l.re, &mut rbuf);
             for (o, v) in row.iter_mut().zip(&rbuf) {
                 *o = Complex64::new(*v, 0.0);
-            }
-        } else if let Some(j) = (0..k).find(|&j| (lambda[j].conj() - l).norm() <= near) {
-            for (o, v) in row.iter_mut().zip(&done[j * (p + 1)..(j + 1) * (p + 1)]) {
-                *o = v.conj();
             }
         } else {
             f.complex(i, l * th, row);

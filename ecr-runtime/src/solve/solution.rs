@@ -403,10 +403,9 @@ impl<S: System> Solution<S> {
             }
             _ => None,
         };
-        let banks = super::between_banks(rtol, atol, check.is_some());
         let settings = SolverSettings {
             predictor: crate::stepper::Predictor::Constant,
-            banks,
+            banks: super::between_banks(rtol, atol, check.is_some()),
             ..dense.settings
         };
         let check_k = check.map_or(answer, |c| &c[k * d..(k + 1) * d]);
@@ -426,7 +425,6 @@ impl<S: System> Solution<S> {
                 r: dense.r,
                 check: check.is_some(),
                 settings,
-                banks,
                 cost: &mut cost,
             },
             out,
@@ -450,8 +448,8 @@ struct FreshSteps<'a, S: System> {
     system: &'a S,
     r: usize,
     check: bool,
+    /// The steppers' settings; their banks' arithmetic serves both runs' steps.
     settings: SolverSettings,
-    banks: crate::operator::BankArithmetic,
     cost: &'a mut super::runs::Cost,
 }
 
@@ -473,7 +471,7 @@ impl<S: System> super::window::PartialSteps for FreshSteps<'_, S> {
             self.check,
             dt,
             self.settings,
-            self.banks,
+            self.settings.banks,
             &cache,
         )?;
         out.0.copy_from_slice(from.0);

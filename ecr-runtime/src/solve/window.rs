@@ -242,10 +242,9 @@ pub(super) fn between(
     let tolerance = (ctx.options.rtol, ctx.options.atol);
     let mut interp = None;
     if let Some(trail) = trail {
-        if let Some(stencil) = trail.grid(d, &[]).stencil(t) {
+        if let Some(stencil) = trail.grid(d).stencil(t) {
             trail.slopes(stencil.range(), runs, cost)?;
-            let stiffness = runs.stiffness().to_vec();
-            interp = Some((&*trail, stencil, stiffness));
+            interp = Some((&*trail, stencil));
         }
     }
     let mut y = vec![0.0; d];
@@ -258,9 +257,9 @@ pub(super) fn between(
             unit: ctx.unit,
             verified: ctx.verified,
         },
-        interp.as_ref().map(|(trail, stencil, stiffness)| {
+        interp.map(|(trail, stencil)| {
             let (sa, sc) = trail.slopes_at(stencil.range());
-            (trail.grid(d, stiffness), *stencil, sa, sc)
+            (trail.grid(d), stencil, sa, sc)
         }),
         &mut RunSteps(runs, cost),
         &mut y,
@@ -392,6 +391,8 @@ pub(super) struct Trail {
     /// The runs' slopes there, NaN until a stencil needs them.
     slope_answer: Vec<f64>,
     slope_check: Vec<f64>,
+    /// The runs' [`stiffness`](super::runs::stiffness), taken with the first slopes.
+    stiffness: Vec<f64>,
 }
 
 impl Trail {
@@ -419,6 +420,9 @@ impl Trail {
         runs: &mut dyn Runs,
         cost: &mut Cost,
     ) -> Result<()> {
+        if self.stiffness.is_empty() {
+            self.stiffness = runs.stiffness().to_vec();
+        }
         let d = self.answer.len() / self.t.len().max(1);
         for j in range {
             let at = j * d..(j + 1) * d;
@@ -470,13 +474,13 @@ impl Trail {
         }
     }
 
-    pub(super) fn grid<'a>(&'a self, d: usize, stiffness: &'a [f64]) -> super::interp::Grid<'a> {
+    pub(super) fn grid(&self, d: usize) -> super::interp::Grid<'_> {
         super::interp::Grid {
             t: &self.t,
             answer: &self.answer,
             check: &self.check,
             d,
-            stiffness,
+            stiffness: &self.stiffness,
         }
     }
 }
