@@ -48,19 +48,18 @@ mod oscillator;
 mod simple;
 mod skew;
 mod spectral;
+mod symmetric;
 mod traits;
 
 pub use circulant::{Circulant, CirculantBank, CirculantWorkspace, FourierBasis};
 pub use circulant2d::{
     Circulant2d, Circulant2dBank, Circulant2dWorkspace, Fourier2dBasis, Fourier2dScratch,
 };
-pub use dense::{
-    Dense, DenseBank, DenseStatic, DenseStaticBank, EigenBasis, Symmetric, SymmetricBank,
-    SymmetricWorkspace,
-};
+pub use dense::{Dense, DenseBank, DenseStatic, DenseStaticBank};
 pub use entries::{DD_PROPAGATOR_MAX_DIM, DD_STAGE_PROPAGATOR_MAX_DIM};
 pub use oscillator::{Oscillator, OscillatorBank, OscillatorWorkspace};
 pub use simple::{Diagonal, DiagonalBank, Scalar, ScalarBank, Zero, ZeroBank};
 pub use skew::{SkewPair, SkewPairBank, SkewPairWorkspace};
 pub use spectral::{SkewGenerator, SpectralBank, SpectralBasis, SpectralWorkspace};
+pub use symmetric::{EigenBasis, Symmetric, SymmetricBank, SymmetricWorkspace};
 pub use traits::{BankArithmetic, LinearOperator, PhiBank};
