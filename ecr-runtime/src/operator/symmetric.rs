@@ -34,8 +34,8 @@ impl Symmetric {
     /// Decomposes a symmetric matrix (it is symmetrised, `(A + Aᵀ)/2`, first).
     ///
     /// # Errors
-    /// [`Error::NotSquare`], [`Error::NonFinite`], [`Error::InvalidInput`] if
-    /// `max |a_ij − a_ji| > 1e−12 · max |a_ij|`, [`Error::Numerical`] if the eigensolver fails.
+    /// [`Error::NotSquare`](crate::Error::NotSquare), [`Error::NonFinite`](crate::Error::NonFinite), [`Error::InvalidInput`](crate::Error::InvalidInput) if
+    /// `max |a_ij − a_ji| > 1e−12 · max |a_ij|`, [`Error::Numerical`](crate::Error::Numerical) if the eigensolver fails.
     pub fn new(a: DMatrix<f64>) -> Result<Self> {
         validate_matrix(&a, "symmetric operator")?;
         check_symmetric(&a, "symmetric operator")?;
@@ -50,7 +50,7 @@ impl Symmetric {
     /// The `d × d` symmetric matrix with the given entries in row-major order.
     ///
     /// # Errors
-    /// [`Error::DimensionMismatch`] if `data.len() ≠ d²`, otherwise as [`Symmetric::new`].
+    /// [`Error::DimensionMismatch`](crate::Error::DimensionMismatch) if `data.len() ≠ d²`, otherwise as [`Symmetric::new`].
     pub fn from_row_slice(d: usize, data: &[f64]) -> Result<Self> {
         Self::new(matrix_from_rows(d, data)?)
     }

@@ -1,13 +1,11 @@
-//! The controller of a solve: the pilot that chooses the order and the first step size, the
-//! run in windows with the decision after each (keep it, or integrate it again with a smaller
-//! step), the step size of the next window, and the run started again when the estimate cannot
-//! be kept within the tolerance otherwise. It sees the runs through [`Runs`] only, so it is
-//! compiled once, not once per system.
+//! One run of a solve in windows, with the decision after each (keep it, or integrate it again
+//! with a smaller step) and the step size of the next window; how it ended
+//! ([`Attempt`]) goes to [`attempts`](super::attempts), which starts runs again. It sees the
+//! runs through [`Runs`] only, so it is compiled once, not once per system.
 
 use super::features::{Feature, Recent, local_step};
-use super::pilot::pilot;
-use super::record::{Observer, Point, Record, cost_since};
-use super::runs::{Cost, Make, Runs};
+use super::record::{Observer, Record, cost_since};
+use super::runs::{Cost, Runs};
 use super::solution::{Stats, Status};
 use super::window::{
     Ctx, GridPoint, LIMIT, P_BOLD, State, StepFailure, TARGET, Trail, advance, check_order, keep,
@@ -17,9 +15,6 @@ use crate::error::{Error, Result};
 
 /// Steps per window.
 const WINDOW: usize = 8;
-
-/// Runs started again from t₀ before the solve gives up.
-const MAX_RESTARTS: usize = 4;
 
 /// Failed steps in a row (with ever smaller steps) before the solve gives up.
 const STUCK_LIMIT: usize = 8;
@@ -34,22 +29,6 @@ const RECENT: f64 = 16.0;
 /// The least number of windows over the span.
 const WINDOWS_MIN: f64 = 32.0;
 
-/// The order by which a restart scales its step size.
-const P_RESTART: f64 = 4.0;
-
-/// A restart makes the step at most this much smaller (a projection of a chaotic run's
-/// estimate can call for steps that would cost thousands of times the run).
-const RESTART_MIN: f64 = 0.5;
-
-/// The step of a run started again after one whose estimate projects to `TARGET / factor`:
-/// h·factor^(1/P_RESTART), between RESTART_MIN and 0.7 of h.
-fn h_next(h: f64, factor: f64) -> f64 {
-    h * factor
-        .clamp(1e-12, 1.0)
-        .powf(1.0 / P_RESTART)
-        .clamp(RESTART_MIN, 0.7)
-}
-
 /// Step sizes are taken from the ladder h₀·2^(k/LADDER): a step size met again finds its
 /// banks in the cache.
 const LADDER: f64 = 8.0;
@@ -58,17 +37,8 @@ const LADDER: f64 = 8.0;
 /// again shows nothing twice), up to this many numbers of their states (32 MiB).
 const OBSERVER_HOLD: usize = 1 << 22;
 
-/// How a run ended.
-pub(super) struct Outcome {
-    pub(super) record: Record,
-    pub(super) r: usize,
-    pub(super) stats: Stats,
-    /// Why the answer is not verified, if it is not.
-    pub(super) unverified: Option<String>,
-}
-
 /// How an attempt ended.
-enum Attempt {
+pub(super) enum Attempt {
     /// At the end of the span (or a terminal event, or the observer's stop).
     Done(Record),
     /// The estimate cannot be kept within the tolerance by smaller steps from here on: start
@@ -88,145 +58,11 @@ enum Attempt {
 }
 
 /// The step of the ladder at or below h.
-fn on_ladder(h: f64, base: f64) -> f64 {
+pub(super) fn on_ladder(h: f64, base: f64) -> f64 {
     let k = (LADDER * (h / base).log2()).floor();
     let q = base * (k / LADDER).exp2();
     // Never above h (rounding of the powers).
     if q > h { h } else { q }
-}
-
-/// A solve to a tolerance: the pilot, then the run, started again where it must be.
-///
-/// # Errors
-/// Failures that leave no solution (bad options found late, a bank that cannot be built).
-pub(super) fn verified(
-    ctx: &Ctx<'_>,
-    make: &mut Make<'_, '_>,
-    observer: &mut Observer<'_>,
-) -> Result<Outcome> {
-    let mut outcome = attempts(ctx, make, observer)?;
-    // The observer sees the steps of the run that is returned (those it has not seen yet).
-    outcome.record.show(observer);
-    Ok(outcome)
-}
-
-/// The pilot and the runs of [`verified`], started again where they must be.
-fn attempts(
-    ctx: &Ctx<'_>,
-    make: &mut Make<'_, '_>,
-    observer: &mut Observer<'_>,
-) -> Result<Outcome> {
-    let options = ctx.options;
-    let (lo, hi) = options.answer_orders()?;
-    let mut stats = Stats::default();
-    let span = ctx.t_end - ctx.t0;
-    if span <= ctx.same_time {
-        // Nothing to integrate: y₀ (moved along the field within the rounding of time).
-        let mut runs = make(lo, true, span.max(f64::MIN_POSITIVE))?;
-        let record = trivial(ctx, &mut *runs)?;
-        return Ok(Outcome {
-            record,
-            r: lo,
-            stats,
-            unverified: None,
-        });
-    }
-    let (r, mut h) = pilot(ctx, make, lo, hi, &mut stats)?;
-    let mut last_reason = String::new();
-    // The step and the time at which the last attempt failed.
-    let mut failed_at: Option<(f64, f64)> = None;
-    for attempt in 0..=MAX_RESTARTS {
-        options.say(|| format!("run: EC{r}P checked by EC{}P-Lobatto, h = {h:.6e}", r - 1));
-        let mut runs = make(r, true, h)?;
-        match run(ctx, &mut *runs, r, h, false, observer, &mut stats)? {
-            Attempt::Done(record) => {
-                let worst = record.worst();
-                let unverified = (worst.is_nan() || worst > LIMIT).then(|| {
-                    format!("the estimated error reaches {worst:.3e} times the tolerance")
-                });
-                return Ok(Outcome {
-                    record,
-                    r,
-                    stats,
-                    unverified,
-                });
-            }
-            Attempt::Again {
-                record,
-                factor,
-                at,
-                noise,
-                reason,
-            } => {
-                options.say(|| format!("start again: {reason}"));
-                // Smaller steps that make the estimate pass the tolerance no later: rounding,
-                // which grows with the number of steps, not the error of the methods.
-                let rounding = failed_at.is_some_and(|(h_before, at_before)| {
-                    h < h_before && at <= at_before * 1.05 && at < ctx.t_end && noise >= 0.01
-                });
-                let why = if rounding {
-                    let (h_before, at_before) = failed_at.expect("checked above");
-                    Some(format!(
-                        "the tolerance is at the round-off floor of this problem: with smaller \
-                         steps the runs' difference reaches it sooner (at t = {at:?} with h = \
-                         {h:.3e}, at t = {at_before:?} with h = {h_before:.3e}), so rounding, not \
-                         the methods' error, sets it; ask for a larger tolerance"
-                    ))
-                } else if record.shown {
-                    Some(format!(
-                        "{reason} (the observer had seen the run, so it was not started again)"
-                    ))
-                } else if attempt == MAX_RESTARTS {
-                    Some(format!(
-                        "{reason}; after {MAX_RESTARTS} runs started again with smaller steps the \
-                         estimate still passes the tolerance: the flow amplifies what the two runs \
-                         differ by, their rounding included (chaos, a separatrix, or a tolerance \
-                         near the round-off floor)"
-                    ))
-                } else {
-                    None
-                };
-                if let Some(reason) = why {
-                    stats.discard(&record.cost);
-                    // The best solution: this step size over the whole span, every window kept,
-                    // with its estimates (some above the tolerance).
-                    let record = if record.shown {
-                        record
-                    } else {
-                        let mut runs = make(r, true, h)?;
-                        match run(ctx, &mut *runs, r, h, true, observer, &mut stats)? {
-                            Attempt::Done(record)
-                            | Attempt::Again { record, .. }
-                            | Attempt::Failed { record, .. } => record,
-                        }
-                    };
-                    return Ok(Outcome {
-                        record,
-                        r,
-                        stats,
-                        unverified: Some(reason),
-                    });
-                }
-                failed_at = Some((h, at));
-                stats.discard(&record.cost);
-                stats.retries += 1;
-                // The error made so far was too large: smaller steps from t₀, at least 30 %
-                // smaller (far from the asymptotic regime, where the cheapest runs are, the
-                // estimate falls more slowly than h^p).
-                h = h_next(h, factor);
-                last_reason = reason;
-            }
-            Attempt::Failed { record, reason } => {
-                return Ok(Outcome {
-                    record,
-                    r,
-                    stats,
-                    unverified: Some(reason),
-                });
-            }
-        }
-    }
-    unreachable!("the last attempt returns ({last_reason})")
 }
 
 /// The estimate at t_end projected from a run that stopped at `t` with estimate `worst`, from
@@ -250,47 +86,6 @@ fn project(history: &[(f64, f64)], t: f64, worst: f64, ctx: &Ctx<'_>) -> f64 {
     linear.max(exponential).min(1e12)
 }
 
-/// The solution of a span within the rounding of time: y₀, moved along the field.
-fn trivial(ctx: &Ctx<'_>, runs: &mut dyn Runs) -> Result<Record> {
-    let mut record = Record::new(ctx.t0, ctx.t_end - ctx.t0);
-    let mut y = ctx.y0.to_vec();
-    let dt = ctx.t_end - ctx.t0;
-    if dt > 0.0 {
-        runs.drift(&mut y, dt)?;
-    }
-    let est = ctx.estimate(&y, &y, 0);
-    match &ctx.options.t_eval {
-        None => {
-            record.output(Point {
-                t: ctx.t0,
-                y: ctx.y0.to_vec(),
-                est,
-            })?;
-            if dt > 0.0 {
-                record.output(Point {
-                    t: ctx.t_end,
-                    y,
-                    est,
-                })?;
-            }
-        }
-        Some(ts) => {
-            for &t in ts {
-                let v = if t == ctx.t0 {
-                    ctx.y0.to_vec()
-                } else {
-                    y.clone()
-                };
-                record.output(Point { t, y: v, est })?;
-            }
-        }
-    }
-    if ctx.options.dense {
-        record.grid(ctx.t0, ctx.y0, ctx.y0)?;
-    }
-    Ok(record)
-}
-
 /// One run from t₀ at order 2r with the check, in windows of steps.
 ///
 /// The step is the run's level `base`, constant unless the estimate says otherwise: the level
@@ -303,7 +98,7 @@ fn trivial(ctx: &Ctx<'_>, runs: &mut dyn Runs) -> Result<Record> {
 /// per unit time down (the close passage of an orbit, a kink of g), and the windows after it
 /// return to the level by factors of √2: constant-step segments where the time scale of the
 /// solution changes.
-fn run(
+pub(super) fn run(
     ctx: &Ctx<'_>,
     runs: &mut dyn Runs,
     r: usize,

@@ -68,6 +68,7 @@
 //! [`Options::max_step`] and [`Options::tstops`] are the remedies for features the sampled
 //! methods cannot see: a pulse narrower than the steps, a kink at a known time.
 
+mod attempts;
 mod control;
 mod events;
 mod features;
@@ -322,7 +323,7 @@ impl<S: System> Problem<S> {
                     ))
                     .into());
                 }
-                let out = control::verified(&ctx, &mut make, &mut observer)?;
+                let out = attempts::verified(&ctx, &mut make, &mut observer)?;
                 let solution = out.record.into_solution(
                     options,
                     &self.system,
