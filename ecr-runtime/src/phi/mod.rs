@@ -34,6 +34,7 @@
 mod dd;
 mod dense;
 mod factorial;
+mod gauss;
 mod legendre;
 mod scalar;
 
