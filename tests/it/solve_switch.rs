@@ -290,6 +290,74 @@ fn the_former_pairs_blind_positions_are_seen() {
     tally.report("the former pair's blind positions");
 }
 
+/// q'' = −q + cos(t/2) + sin(ωt + 0.3) with a clock, y = (q, p, c), q(0) = 1 over (0, 10);
+/// the linear part the oscillator (exact), g = (0, cos(c/2) + sin(ωc + 0.3), 1). Exact by
+/// the particular solutions of both forcings plus the free oscillation that meets y₀.
+fn forced(omega: f64) -> (Problem<impl System>, [(usize, f64); 2]) {
+    let (nu, phase) = (0.5_f64, 0.3_f64);
+    let mut a = DMatrix::zeros(3, 3);
+    a[(0, 1)] = 1.0;
+    a[(1, 0)] = -1.0;
+    let system = Semilinear::new(Dense::new(a).unwrap(), move |y: &[f64], g: &mut [f64]| {
+        g[0] = 0.0;
+        g[1] = (nu * y[2]).cos() + (omega * y[2] + phase).sin();
+        g[2] = 1.0;
+    });
+    let (ks, kf) = (1.0 / (1.0 - nu * nu), 1.0 / (1.0 - omega * omega));
+    let c0 = 1.0 - ks - kf * phase.sin();
+    let s0 = -kf * omega * phase.cos();
+    let t = 10.0_f64;
+    let q = c0 * t.cos() + s0 * t.sin() + ks * (nu * t).cos() + kf * (omega * t + phase).sin();
+    let p = -c0 * t.sin() + s0 * t.cos() - ks * nu * (nu * t).sin()
+        + kf * omega * (omega * t + phase).cos();
+    (
+        Problem::new(system, [1.0, 0.0, 0.0], (0.0, t)).unwrap(),
+        [(0, q), (1, p)],
+    )
+}
+
+/// A forcing sin(ωt + 0.3) whose frequency is aliased for the former pair: ωh = θ*(r), where
+/// Σ bᵢ cos(θ(cᵢ − ½)) over the r Gauss nodes equals the same sum over the r Lobatto nodes
+/// (θ* ≈ 18.24, 22.76, 27.02 for r = 4, 5, 6); the former pair returned `Ok` 2e4 … 7.5e9
+/// tolerances off there. Also at the first such θ of the pair as built (Gauss r against
+/// Lobatto r + 1: 26.57 and 31.04 for r = 4, 5), a blind frequency of its own (docs/solve.md
+/// §2.1). h is the step the solve took at t = 5 on the previous problem of the sequence (the
+/// first: without the fast forcing), twice, so that a check blind at θ would take the same
+/// step again and be wrong there (the check as built shrinks the step instead, so the
+/// sequence runs off to ever higher ω). No `Ok` above 10 tolerances.
+#[test]
+fn a_forcing_aliased_for_the_former_pair_is_seen() {
+    let mut tally = Tally::default();
+    let cases: [(usize, f64); 5] = [
+        (4, 18.243_7),
+        (5, 22.757_1),
+        (6, 27.019_2),
+        (4, 26.573_8),
+        (5, 31.044_2),
+    ];
+    let step_at_5 = |t: &[f64]| {
+        let i = t.partition_point(|&t| t < 5.0).min(t.len() - 2);
+        t[i + 1] - t[i]
+    };
+    for (r, theta) in cases {
+        for tol in [1e-4, 1e-6, 1e-8, 1e-10] {
+            let options = Options::tolerance(tol).orders(r..=r);
+            let mut h = step_at_5(&grid_of(&forced(0.0).0, &options));
+            for _ in 0..2 {
+                let (problem, exact) = forced(theta / h);
+                let label = format!("sin(ωt + 0.3) with ωh = {theta} at h = {h:.4e}, r = {r}");
+                tally.solve(&label, &problem, &options, &exact, tol);
+                h = match problem.solve(&options) {
+                    Ok(sol) => step_at_5(&sol.t),
+                    Err(SolveError::Unverified { solution, .. }) => step_at_5(&solution.t),
+                    Err(e) => panic!("{label}: {e}"),
+                };
+            }
+        }
+    }
+    tally.report("a forcing at aliased frequencies");
+}
+
 /// rtol alone (atol = 0), a harmonic oscillator of amplitude 1e−100 … 1e+100: as accurate,
 /// relative to its size, as one of amplitude 1 (the stage iteration stopped on an absolute
 /// 1e−15 below size 1: 8.6e4 tolerances off at 1e−100).
