@@ -30,5 +30,8 @@ fn main() {
             with.events.len(),
             100.0 * (b as f64 / a as f64 - 1.0)
         );
+        if std::env::var("STATS").is_ok() {
+            println!("  {:?}", with.stats);
+        }
     }
 }

@@ -75,10 +75,25 @@ impl Event {
     /// The time of the zero between (t_a, e_a) and (t_b, e_b), by the Illinois variant of
     /// regula falsi, `eval(t)` giving e at t, to a few ulps of t: the end of the bracket on the
     /// far side, the first time the sign changed. Regula falsi alone creeps at a flat (multiple)
-    /// zero, so a bisection is taken whenever three steps have not halved the bracket: at most
-    /// about 4 x 64 evaluations, usually fewer than 10.
+    /// zero, so a bisection is taken whenever three steps have not halved the bracket, and a
+    /// point within half the final width of an end is moved that far past it: at most about
+    /// 4 x 64 evaluations, usually fewer than 10 (from a bracket a few interpolation errors
+    /// wide around a simple zero, 2 or 3).
     pub(super) fn locate<E>(
         &self,
+        a: (f64, f64),
+        b: (f64, f64),
+        eval: impl FnMut(f64) -> std::result::Result<f64, E>,
+    ) -> std::result::Result<f64, E> {
+        self.locate_within(4.0, a, b, eval)
+    }
+
+    /// [`locate`](Self::locate) to `ulps` units of roundoff of t (a function known only to
+    /// its own rounding, such as the runs' steps, is searched to a wider bracket than one
+    /// computed exactly: below its rounding the signs are noise, and regula falsi creeps).
+    pub(super) fn locate_within<E>(
+        &self,
+        ulps: f64,
         (ta, ea): (f64, f64),
         (tb, eb): (f64, f64),
         mut eval: impl FnMut(f64) -> std::result::Result<f64, E>,
@@ -88,15 +103,34 @@ impl Event {
         }
         let (mut a, mut fa, mut b, mut fb) = (ta, ea, tb, eb);
         let mut side = 0i8;
-        let (mut width, mut since) = (b - a, 0);
+        let (mut width, mut since, mut nudges) = (b - a, 0, 0u32);
         loop {
-            let tol = 4.0 * f64::EPSILON * a.abs().max(b.abs());
+            let tol = ulps * f64::EPSILON * a.abs().max(b.abs());
             if b - a <= tol {
                 break;
             }
-            let mut c = b - fb * (b - a) / (fb - fa);
-            if since >= 3 || !(c > a && c < b) {
-                c = 0.5 * (a + b);
+            // Regula falsi, or a bisection where three steps have not halved the bracket. A
+            // point within a least step of an end leaves the other end where it is (regula
+            // falsi converges from one side, and so would the bisections after it): the least
+            // step past that end instead, doubled at each such point in a row, where it most
+            // likely closes the bracket (Dekker's least step).
+            let falsi = b - fb * (b - a) / (fb - fa);
+            let mid = a.midpoint(b);
+            let least = 0.5 * tol * f64::from(1u32 << nudges.min(30));
+            let mut c = if since >= 3 || !(falsi > a && falsi < b) {
+                mid
+            } else {
+                falsi
+            };
+            if (a..=b).contains(&falsi) && (falsi - a < least || b - falsi < least) {
+                c = if falsi - a < least {
+                    (a + least).min(mid)
+                } else {
+                    (b - least).max(mid)
+                };
+                nudges += 1;
+            } else {
+                nudges = 0;
             }
             let fc = eval(c)?;
             if fc == 0.0 {
@@ -170,6 +204,53 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A zero within an ulp of one end (regula falsi lands on that end; the Illinois halving
+    /// and the bisections after it would creep in from the other): Dekker's least step past
+    /// the end closes the bracket at once.
+    #[test]
+    fn locate_closes_a_bracket_whose_zero_is_at_one_end() {
+        let event = Event::new(|_, _| 0.0);
+        let b = 7.737_825_807_870_479_f64;
+        let a = b - 3.5e-12;
+        // The zero a quarter of an ulp of b below it: f(b) rounds to −0.
+        let f = |t: f64| (t - b) + 2e-16;
+        let mut n = 0;
+        let t = event
+            .locate((a, f(a)), (b, -1e-16), |t| {
+                n += 1;
+                Ok::<_, ()>(f(t))
+            })
+            .unwrap();
+        assert!(
+            (t - b).abs() <= 8.0 * f64::EPSILON * b,
+            "{t} ({n} evaluations)"
+        );
+        assert!(n <= 3, "{n} evaluations");
+    }
+
+    /// A function known to its rounding only (a linear one with a deterministic noise of 1e−14,
+    /// as values of the runs' steps are): to 64 ulps in a few evaluations from a bracket a few
+    /// interpolation errors wide.
+    #[test]
+    fn locate_within_a_noisy_function_stops_at_its_width() {
+        let event = Event::new(|_, _| 0.0);
+        let root = 12.155_801_318_3_f64;
+        let f = |t: f64| -0.5 * (t - root) + 1e-14 * (t * 1e9).sin();
+        let mut n = 0;
+        let (a, b) = (root - 7e-8, root + 7e-8);
+        let t = event
+            .locate_within(64.0, (a, f(a)), (b, f(b)), |t| {
+                n += 1;
+                Ok::<_, ()>(f(t))
+            })
+            .unwrap();
+        assert!(
+            (t - root).abs() <= 64.0 * f64::EPSILON * root + 4e-14,
+            "{t}, {n} evaluations"
+        );
+        assert!(n <= 6, "{n} evaluations");
     }
 }
 

@@ -57,37 +57,63 @@ pub(super) struct Grid<'a> {
 /// the points `xs`), by divided differences on the doubled nodes, in the scaled variable
 /// (x − xs₀)/`scale`.
 fn hermite(xs: &[f64], y: &[f64], dy: &[f64], d: usize, i: usize, t: f64, scale: f64) -> f64 {
-    const N: usize = 2 * (POINTS + 1);
-    let m = xs.len();
-    let n = 2 * m;
-    let mut z = [0.0; N];
-    let mut c = [0.0; N];
-    for j in 0..m {
-        let s = (xs[j] - xs[0]) / scale;
-        z[2 * j] = s;
-        z[2 * j + 1] = s;
-        c[2 * j] = y[j * d + i];
-        c[2 * j + 1] = y[j * d + i];
-    }
-    // First differences: the slope at a doubled node, the secant between nodes.
-    for k in (1..n).rev() {
-        c[k] = if k % 2 == 1 {
-            dy[(k / 2) * d + i] * scale
-        } else {
-            (c[k] - c[k - 1]) / (z[k] - z[k - 1])
-        };
-    }
-    for level in 2..n {
-        for k in (level..n).rev() {
-            c[k] = (c[k] - c[k - 1]) / (z[k] - z[k - level]);
+    Newton::new(xs, y, dy, d, i, scale).at(t)
+}
+
+/// The Hermite interpolant of one component in Newton's form: the doubled nodes and the
+/// divided differences on them, in the scaled variable (x − xs₀)/`scale`.
+struct Newton {
+    z: [f64; 2 * (POINTS + 1)],
+    c: [f64; 2 * (POINTS + 1)],
+    n: usize,
+    x0: f64,
+    scale: f64,
+}
+
+impl Newton {
+    fn new(xs: &[f64], y: &[f64], dy: &[f64], d: usize, i: usize, scale: f64) -> Self {
+        const N: usize = 2 * (POINTS + 1);
+        let m = xs.len();
+        let n = 2 * m;
+        let mut z = [0.0; N];
+        let mut c = [0.0; N];
+        for j in 0..m {
+            let s = (xs[j] - xs[0]) / scale;
+            z[2 * j] = s;
+            z[2 * j + 1] = s;
+            c[2 * j] = y[j * d + i];
+            c[2 * j + 1] = y[j * d + i];
+        }
+        // First differences: the slope at a doubled node, the secant between nodes.
+        for k in (1..n).rev() {
+            c[k] = if k % 2 == 1 {
+                dy[(k / 2) * d + i] * scale
+            } else {
+                (c[k] - c[k - 1]) / (z[k] - z[k - 1])
+            };
+        }
+        for level in 2..n {
+            for k in (level..n).rev() {
+                c[k] = (c[k] - c[k - 1]) / (z[k] - z[k - level]);
+            }
+        }
+        Newton {
+            z,
+            c,
+            n,
+            x0: xs[0],
+            scale,
         }
     }
-    let s = (t - xs[0]) / scale;
-    let mut p = c[n - 1];
-    for k in (0..n - 1).rev() {
-        p = p * (s - z[k]) + c[k];
+
+    fn at(&self, t: f64) -> f64 {
+        let s = (t - self.x0) / self.scale;
+        let mut p = self.c[self.n - 1];
+        for k in (0..self.n - 1).rev() {
+            p = p * (s - self.z[k]) + self.c[k];
+        }
+        p
     }
-    p
 }
 
 impl Grid<'_> {
@@ -119,6 +145,34 @@ impl Grid<'_> {
             first
         };
         Some(Stencil { first, first_x })
+    }
+
+    /// One run's interpolant (the check's with `check`, else the answer's) at the times
+    /// `times` (in the interval of `stencil`), state after state into `out`: a start for the
+    /// stage iterations of a step.
+    pub(super) fn states_at(
+        &self,
+        times: impl Iterator<Item = f64> + Clone,
+        stencil: Stencil,
+        slopes: (&[f64], &[f64]),
+        check: bool,
+        out: &mut [f64],
+    ) {
+        let d = self.d;
+        let Stencil { first, first_x } = stencil;
+        let more = POINTS + 1;
+        let xs = &self.t[first..first + POINTS];
+        let scale = self.t[first_x + more - 1] - self.t[first_x];
+        let states = if check { self.check } else { self.answer };
+        let y = &states[first * d..];
+        let shift = (first - first_x) * d;
+        let dy = &if check { slopes.1 } else { slopes.0 }[shift..];
+        for i in 0..d {
+            let newton = Newton::new(xs, y, dy, d, i, scale);
+            for (j, t) in times.clone().enumerate() {
+                out[j * d + i] = newton.at(t);
+            }
+        }
     }
 
     /// The answer's interpolant at `t` on `stencil` into `out` and its estimate in units of

@@ -418,6 +418,7 @@ impl<S: System> Solution<S> {
                 tolerance: (rtol, atol),
                 unit,
                 verified: check.is_some(),
+                interpolate: true,
             },
             interp,
             &mut FreshSteps {
@@ -425,6 +426,7 @@ impl<S: System> Solution<S> {
                 r: dense.r,
                 check: check.is_some(),
                 settings,
+                seeded: super::runs::seed_pays(self.stats.steps, self.stats.sweeps),
                 cost: &mut cost,
             },
             out,
@@ -450,6 +452,8 @@ struct FreshSteps<'a, S: System> {
     check: bool,
     /// The steppers' settings; their banks' arithmetic serves both runs' steps.
     settings: SolverSettings,
+    /// Whether a step starts from the interpolant ([`seed_pays`](super::runs::seed_pays)).
+    seeded: bool,
     cost: &'a mut super::runs::Cost,
 }
 
@@ -463,6 +467,7 @@ impl<S: System> super::window::PartialSteps for FreshSteps<'_, S> {
         from: (&[f64], &[f64]),
         dt: f64,
         out: (&mut [f64], &mut [f64]),
+        seed: Option<super::runs::Seed<'_>>,
     ) -> Result<()> {
         let cache = Arc::new(super::SolveCache::<S>::new(4));
         let mut runs = super::runs::PairRuns::new(
@@ -474,6 +479,9 @@ impl<S: System> super::window::PartialSteps for FreshSteps<'_, S> {
             self.settings.banks,
             &cache,
         )?;
+        if let Some(seed) = seed.filter(|_| self.seeded) {
+            runs.seed(seed)?;
+        }
         out.0.copy_from_slice(from.0);
         out.1.copy_from_slice(from.1);
         super::runs::Runs::step(&mut runs, out.0, out.1, self.cost)

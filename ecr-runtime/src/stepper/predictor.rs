@@ -79,4 +79,32 @@ impl<K: Kernel, S: System, B: Buffers> StepContext<'_, K, S, B> {
             Ok(1)
         }
     }
+
+    /// The first iterate from given stage values ([`Stepper::seed`](super::Stepper::seed)),
+    /// g there; `y0` = y. A stage at a node c = 0 is y. Returns the evaluations of g.
+    ///
+    /// # Errors
+    /// [`Error::NonFinite`] if g is not finite there.
+    pub(super) fn start_seeded(
+        &mut self,
+        seed: &[f64],
+        y: &[f64],
+        y0: &mut [f64],
+        stages: &mut [f64],
+        g: &mut [f64],
+    ) -> Result<usize> {
+        let (_, s, d) = self.sizes;
+        stages.copy_from_slice(seed);
+        for (j, &c) in self.kernel.nodes().iter().enumerate() {
+            if c == 0.0 {
+                stages[j * d..(j + 1) * d].copy_from_slice(y);
+            }
+        }
+        self.eval_stages(stages, g, None)?;
+        if !all_finite(g) {
+            return Err(Error::NonFinite(G_NONFINITE));
+        }
+        y0.copy_from_slice(y);
+        Ok(s)
+    }
 }

@@ -53,6 +53,8 @@ pub struct Stepper<K: Kernel, S: System, B: Buffers> {
     /// How the extrapolated guess ([`Predictor::Extrapolate`]) has fared at this h (see
     /// [`GuessBackoff`]).
     guess: GuessBackoff,
+    /// Stage values for the next step only ([`seed`](Stepper::seed)), s·d numbers, or empty.
+    seed: Vec<f64>,
 }
 
 /// When to try the extrapolated guess ([`Predictor::Extrapolate`]) again after it failed.
@@ -215,6 +217,7 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             theta: 1.0,
             par,
             guess: GuessBackoff::FRESH,
+            seed: Vec::new(),
         })
     }
 
@@ -360,6 +363,28 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
         self.settings
     }
 
+    /// The stage values the next step's iteration starts from (s·d numbers: the state at
+    /// t + cⱼh for each node cⱼ of the kernel, in order), for that step only, in place of the
+    /// predictor's guess. A stage at a node c = 0 is taken as y whatever the seed says. Where
+    /// the iteration from the seed fails (diverges, or reaches the sweep limit with
+    /// [`SweepLimit::Error`]), the step starts again from y. The first call allocates.
+    ///
+    /// # Errors
+    /// [`Error::DimensionMismatch`] for a seed of another length.
+    pub(crate) fn seed(&mut self, stages: &[f64]) -> Result<()> {
+        let expected = self.kernel.s() * self.buf.dim();
+        if stages.len() != expected {
+            return Err(Error::DimensionMismatch {
+                what: "stage seed",
+                expected,
+                found: stages.len(),
+            });
+        }
+        self.seed.clear();
+        self.seed.extend_from_slice(stages);
+        Ok(())
+    }
+
     /// Advances y by one step of size h in place. Allocation-free.
     ///
     /// # Errors
@@ -440,6 +465,7 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             theta,
             par,
             guess,
+            seed,
             ..
         } = self;
         buf.with_parts(|parts| {
@@ -490,7 +516,9 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
             // The first iterate: the previous step extrapolated (unless the guess is waiting
             // after a failure), or y₀ at every stage.
             let predict = continuing && settings.predictor == Predictor::Extrapolate;
-            let mut extrapolate = predict && guess.try_guess();
+            // A seed (stage values given for this step) comes before the predictor.
+            let mut seeded = !seed.is_empty();
+            let mut extrapolate = !seeded && predict && guess.try_guess();
             // The work of an iteration from the guess that failed (restarted from y₀).
             let mut failed = Effort::default();
             let mut failed_newton = (0, 0, 0);
@@ -502,7 +530,12 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                     None
                 };
                 let mut effort = Effort::default();
-                let attempt = match cx.start(extrapolate, y, y0, moments, stages, props, g) {
+                let started = if seeded {
+                    cx.start_seeded(seed, y, y0, stages, g)
+                } else {
+                    cx.start(extrapolate, y, y0, moments, stages, props, g)
+                };
+                let attempt = match started {
                     // Sweeps until the stopping rule holds.
                     Ok(start_evals) => cx
                         .iterate(
@@ -522,7 +555,7 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                 };
                 let newton_counts =
                     nt.map_or((0, 0, 0), |n| (n.jacobian_evals, n.refreshes, n.g_evals));
-                if extrapolate {
+                if extrapolate || seeded {
                     let accepted = attempt.as_ref().is_ok_and(|(_, it)| {
                         it.converged || settings.on_limit == SweepLimit::Accept
                     });
@@ -532,12 +565,18 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                         failed.sweeps += effort.sweeps;
                         failed.g_evals += start_evals + effort.g_evals;
                         failed_newton = newton_counts;
-                        guess.failed();
-                        extrapolate = false;
+                        if extrapolate {
+                            guess.failed();
+                        }
+                        (extrapolate, seeded) = (false, false);
+                        seed.clear();
                         continue;
                     }
-                    guess.converged();
+                    if extrapolate {
+                        guess.converged();
+                    }
                 }
+                seed.clear();
                 let (start_evals, it) = attempt?;
                 break (start_evals, it, effort, newton_counts);
             };
