@@ -1,5 +1,9 @@
-//! Events: the zeros of user functions e(t, y), located on the continuous solution.
+//! Events: the zeros of user functions e(t, y), located on the continuous solution: first on
+//! the grid's interpolant, then, where it does not serve, on the runs' steps ([`hit`]).
 
+use super::record::Point;
+use super::runs::{Cost, Runs};
+use super::window::{Ctx, GridPoint, INTERP_MAX, Trail, between};
 use crate::error::{Error, Result};
 
 /// Which sign changes of an event function count.
@@ -162,6 +166,119 @@ impl Event {
             }
         }
         Ok(b)
+    }
+}
+
+/// The width, in units of roundoff of t, to which a zero is searched on the runs' steps: their
+/// values are rounded at the stage iteration's tolerance (about 1e−15 of the state, differing
+/// with the iteration's start), which moves a zero of a function of slope ~1 by ~1e−14 — more
+/// than a few ulps of t, where regula falsi and bisection would creep on noise (Lotka–Volterra,
+/// tol 1e−8: up to 36 values for one zero, against 4 to 6 here).
+const STEPS_ULPS: f64 = 64.0;
+
+/// The zero of event `k` over the step from `prev` to `p` (where it changes sign from `before`
+/// to `after`), and the value there.
+///
+/// Each evaluation on the solution is a value between grid points ([`between`]), which costs a
+/// step of each run where the interpolant does not serve. So the zero is first located on the
+/// grid's interpolant (no evaluation of g beyond its slopes). Where the interpolant serves the
+/// value there (its estimate within [`INTERP_MAX`]), that is the zero and its value. Else the
+/// zero is searched on the runs' steps alone (one source for every value of the search: a
+/// function that switched between the interpolant and the steps would jump by up to their
+/// difference, and the search would creep at the jump): the steps are taken at the
+/// interpolant's zero and a little beyond it on the side the interpolant's slope predicts
+/// (twice the Newton correction), a bracket a few interpolation errors wide in most cases,
+/// which regula falsi closes in two or three more values; where those points do not bracket
+/// the zero, the search goes on from the tightest bracket they left, to [`STEPS_ULPS`] units
+/// of roundoff of t. Either way the value returned is the one at the zero's time.
+///
+/// # Errors
+/// What [`between`] and the event function report.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn hit(
+    ctx: &Ctx<'_>,
+    runs: &mut dyn Runs,
+    (prev, p): (&GridPoint, &GridPoint),
+    n: usize,
+    (k, event): (usize, &Event),
+    (before, after): (f64, f64),
+    mut trail: Option<&mut Trail>,
+    cost: &mut Cost,
+) -> Result<Point> {
+    let d = prev.answer.len();
+    // The zero on the interpolant, and the slope of the event function there.
+    let mut guess = None;
+    if let Some(trail) = trail.as_deref_mut() {
+        if let Some(stencil) = trail.grid(d).stencil(prev.t.midpoint(p.t)) {
+            trail.slopes(stencil.range(), runs, cost)?;
+            let slopes = trail.slopes_at(stencil.range());
+            let grid = trail.grid(d);
+            let mut y = vec![0.0; d];
+            let mut on_interp = |t: f64| {
+                grid.states_at(std::iter::once(t), stencil, slopes, false, &mut y);
+                event.value(k, t, &y)
+            };
+            let t0 = event.locate((prev.t, before), (p.t, after), &mut on_interp)?;
+            let dt = 1e-6 * (p.t - prev.t);
+            let (a, b) = ((t0 - dt).max(prev.t), (t0 + dt).min(p.t));
+            let slope = (on_interp(b)? - on_interp(a)?) / (b - a);
+            if ctx.verified && t0 > prev.t && t0 < p.t {
+                // The interpolant's own estimate there: where it serves, the zero is found.
+                let tolerance = (ctx.options.rtol, ctx.options.atol);
+                let est = grid.value(
+                    t0,
+                    stencil,
+                    slopes.0,
+                    slopes.1,
+                    tolerance,
+                    ctx.unit,
+                    n + 1,
+                    &mut y,
+                );
+                if est <= INTERP_MAX {
+                    return Ok(Point { t: t0, y, est });
+                }
+            }
+            guess = Some((t0, slope));
+        }
+    }
+    // The values of the runs' steps, kept so that the zero's is not computed twice.
+    let mut seen: Vec<Point> = Vec::new();
+    let mut on_steps = |t: f64, seen: &mut Vec<Point>| -> Result<f64> {
+        let v = between(ctx, runs, prev, n, t, trail.as_deref_mut(), false, cost)?;
+        let e = event.value(k, t, &v.y)?;
+        seen.push(v);
+        Ok(e)
+    };
+    let (mut lo, mut hi) = ((prev.t, before), (p.t, after));
+    let narrow = |(t, e): (f64, f64), lo: &mut (f64, f64), hi: &mut (f64, f64)| {
+        if t > lo.0 && t < hi.0 {
+            if (e < 0.0) == (lo.1 < 0.0) && e != 0.0 {
+                *lo = (t, e);
+            } else {
+                *hi = (t, e);
+            }
+        }
+    };
+    if let Some((t0, slope)) = guess {
+        if t0 > lo.0 && t0 < hi.0 {
+            let e0 = on_steps(t0, &mut seen)?;
+            narrow((t0, e0), &mut lo, &mut hi);
+            let t1 = t0 - 2.0 * e0 / slope;
+            if e0 != 0.0 && t1 > lo.0 && t1 < hi.0 && t1 != t0 {
+                let e1 = on_steps(t1, &mut seen)?;
+                narrow((t1, e1), &mut lo, &mut hi);
+            }
+        }
+    }
+    let t_hit = if hi.1 == 0.0 {
+        hi.0
+    } else {
+        event.locate_within(STEPS_ULPS, lo, hi, |t| on_steps(t, &mut seen))?
+    };
+    match seen.iter().rposition(|q| q.t == t_hit) {
+        Some(i) => Ok(seen.swap_remove(i)),
+        None => between(ctx, runs, prev, n, t_hit, trail, false, cost),
     }
 }
 
