@@ -3,7 +3,7 @@
 
 use super::record::Point;
 use super::runs::{Cost, Runs};
-use super::window::{Ctx, GridPoint, INTERP_MAX, Trail, between};
+use super::window::{Ctx, GridPoint, INTERP_MAX, Source, Trail, between};
 use crate::error::{Error, Result};
 
 /// Which sign changes of an event function count.
@@ -183,9 +183,10 @@ const STEPS_ULPS: f64 = 64.0;
 /// step of each run where the interpolant does not serve. So the zero is first located on the
 /// grid's interpolant (no evaluation of g beyond its slopes). Where the interpolant serves the
 /// value there (its estimate within [`INTERP_MAX`]), that is the zero and its value. Else the
-/// zero is searched on the runs' steps alone (one source for every value of the search: a
+/// zero is searched on the answer's steps alone (one source for every value of the search: a
 /// function that switched between the interpolant and the steps would jump by up to their
-/// difference, and the search would creep at the jump): the steps are taken at the
+/// difference, and the search would creep at the jump; the check's step is taken only at the
+/// zero found, for the estimate of the value returned): the steps are taken at the
 /// interpolant's zero and a little beyond it on the side the interpolant's slope predicts
 /// (twice the Newton correction), a bracket a few interpolation errors wide in most cases,
 /// which regula falsi closes in two or three more values; where those points do not bracket
@@ -242,13 +243,19 @@ pub(super) fn hit(
             guess = Some((t0, slope));
         }
     }
-    // The values of the runs' steps, kept so that the zero's is not computed twice.
-    let mut seen: Vec<Point> = Vec::new();
-    let mut on_steps = |t: f64, seen: &mut Vec<Point>| -> Result<f64> {
-        let v = between(ctx, runs, prev, n, t, trail.as_deref_mut(), false, cost)?;
-        let e = event.value(k, t, &v.y)?;
-        seen.push(v);
-        Ok(e)
+    // The search's values: the answer's steps alone (the check's is needed only where it stops).
+    let mut on_steps = |t: f64| -> Result<f64> {
+        let v = between(
+            ctx,
+            runs,
+            prev,
+            n,
+            t,
+            trail.as_deref_mut(),
+            Source::Answer,
+            cost,
+        )?;
+        event.value(k, t, &v.y)
     };
     let (mut lo, mut hi) = ((prev.t, before), (p.t, after));
     let narrow = |(t, e): (f64, f64), lo: &mut (f64, f64), hi: &mut (f64, f64)| {
@@ -262,11 +269,11 @@ pub(super) fn hit(
     };
     if let Some((t0, slope)) = guess {
         if t0 > lo.0 && t0 < hi.0 {
-            let e0 = on_steps(t0, &mut seen)?;
+            let e0 = on_steps(t0)?;
             narrow((t0, e0), &mut lo, &mut hi);
             let t1 = t0 - 2.0 * e0 / slope;
             if e0 != 0.0 && t1 > lo.0 && t1 < hi.0 && t1 != t0 {
-                let e1 = on_steps(t1, &mut seen)?;
+                let e1 = on_steps(t1)?;
                 narrow((t1, e1), &mut lo, &mut hi);
             }
         }
@@ -274,12 +281,11 @@ pub(super) fn hit(
     let t_hit = if hi.1 == 0.0 {
         hi.0
     } else {
-        event.locate_within(STEPS_ULPS, lo, hi, |t| on_steps(t, &mut seen))?
+        event.locate_within(STEPS_ULPS, lo, hi, on_steps)?
     };
-    match seen.iter().rposition(|q| q.t == t_hit) {
-        Some(i) => Ok(seen.swap_remove(i)),
-        None => between(ctx, runs, prev, n, t_hit, trail, false, cost),
-    }
+    // Both runs there (the answer's step again, the same to the bit: the same start, the same
+    // seed), for the value's estimate.
+    between(ctx, runs, prev, n, t_hit, trail, Source::Steps, cost)
 }
 
 #[cfg(test)]

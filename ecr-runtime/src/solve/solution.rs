@@ -418,7 +418,7 @@ impl<S: System> Solution<S> {
                 tolerance: (rtol, atol),
                 unit,
                 verified: check.is_some(),
-                interpolate: true,
+                source: super::window::Source::Rule,
             },
             interp,
             &mut FreshSteps {
@@ -468,12 +468,13 @@ impl<S: System> super::window::PartialSteps for FreshSteps<'_, S> {
         dt: f64,
         out: (&mut [f64], &mut [f64]),
         seed: Option<super::runs::Seed<'_>>,
+        with_check: bool,
     ) -> Result<()> {
         let cache = Arc::new(super::SolveCache::<S>::new(4));
         let mut runs = super::runs::PairRuns::new(
             self.system,
             self.r,
-            self.check,
+            self.check && with_check,
             dt,
             self.settings,
             self.settings.banks,

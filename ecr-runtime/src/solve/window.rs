@@ -237,7 +237,7 @@ pub(super) fn between(
     n: usize,
     t: f64,
     trail: Option<&mut Trail>,
-    interpolate: bool,
+    source: Source,
     cost: &mut Cost,
 ) -> Result<Point> {
     let d = base.answer.len();
@@ -258,7 +258,7 @@ pub(super) fn between(
             tolerance,
             unit: ctx.unit,
             verified: ctx.verified,
-            interpolate,
+            source,
         },
         interp.map(|(trail, stencil)| {
             let (sa, sc) = trail.slopes_at(stencil.range());
@@ -268,6 +268,19 @@ pub(super) fn between(
         &mut y,
     )?;
     Ok(Point { t, y, est })
+}
+
+/// Where a value between grid points comes from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Source {
+    /// The interpolant where its estimate allows, else a step of each run (the one rule of
+    /// [`value_between`]).
+    Rule,
+    /// A step of each run (one source for all the values of a search).
+    Steps,
+    /// A step of the answer alone, without an estimate (a search's trial values: only the
+    /// value it stops at needs the check's).
+    Answer,
 }
 
 /// What a value between grid points is asked for: the time, the grid point before it (its
@@ -281,9 +294,9 @@ pub(super) struct ValueAt<'a> {
     pub(super) unit: f64,
     /// A checked run (else the estimate is 0 and no interpolant is tried).
     pub(super) verified: bool,
-    /// Whether the interpolant may serve the value where its estimate allows (else it only
-    /// starts the steps' stage iterations): one source for all the values of a search.
-    pub(super) interpolate: bool,
+    /// Where the value comes from (the interpolant, where it does not serve the value, still
+    /// starts the steps' stage iterations).
+    pub(super) source: Source,
 }
 
 /// A stencil of the grid and its slopes (answer's, check's at the stencil's points).
@@ -302,8 +315,8 @@ pub(super) trait PartialSteps {
     /// [`Error::NonFinite`] if the field is not finite there.
     fn drift(&mut self, y: &mut [f64], dt: f64) -> Result<()>;
     /// One step of length `dt` of the answer's method from `from.0` into `out.0` and of the
-    /// check's from `from.1` into `out.1`, their stage iterations started from `seed` where
-    /// given.
+    /// check's from `from.1` into `out.1` (unless `with_check` is false: `out.1` is then left
+    /// as it is), their stage iterations started from `seed` where given.
     ///
     /// # Errors
     /// What the steps report.
@@ -313,6 +326,7 @@ pub(super) trait PartialSteps {
         dt: f64,
         out: (&mut [f64], &mut [f64]),
         seed: Option<Seed<'_>>,
+        with_check: bool,
     ) -> Result<()>;
 }
 
@@ -329,8 +343,9 @@ impl PartialSteps for RunSteps<'_> {
         dt: f64,
         out: (&mut [f64], &mut [f64]),
         seed: Option<Seed<'_>>,
+        with_check: bool,
     ) -> Result<()> {
-        self.0.partial(from, dt, out, seed, self.1)
+        self.0.partial(from, dt, out, seed, with_check, self.1)
     }
 }
 
@@ -353,7 +368,7 @@ pub(super) fn value_between(
         tolerance,
         unit,
         verified,
-        interpolate,
+        source,
     } = at;
     let dt = t - t_base;
     out.copy_from_slice(answer);
@@ -370,7 +385,7 @@ pub(super) fn value_between(
     // does not, it still starts the stage iterations of the steps (fewer sweeps than from the
     // grid state).
     let interp = interp.filter(|_| verified);
-    if let Some((grid, stencil, sa, sc)) = interp.as_ref().filter(|_| interpolate) {
+    if let Some((grid, stencil, sa, sc)) = interp.as_ref().filter(|_| source == Source::Rule) {
         let e = grid.value(t, *stencil, sa, sc, tolerance, unit, n + 1, out);
         if e <= INTERP_MAX {
             return Ok(e);
@@ -385,8 +400,9 @@ pub(super) fn value_between(
     };
     let mut yc = vec![0.0; out.len()];
     let seed: Option<Seed<'_>> = interp.is_some().then_some(&seed);
-    steps.partial((answer, check), dt, (out, &mut yc), seed)?;
-    if !verified {
+    let with_check = source != Source::Answer;
+    steps.partial((answer, check), dt, (out, &mut yc), seed, with_check)?;
+    if !verified || !with_check {
         return Ok(0.0);
     }
     let e = super::runs::estimate(tolerance, unit, out, &yc, n + 1);
@@ -587,7 +603,16 @@ pub(super) fn keep(
                             est: p.est,
                         }
                     } else {
-                        between(ctx, runs, prev, n, t, trail.as_deref_mut(), true, &mut cost)?
+                        between(
+                            ctx,
+                            runs,
+                            prev,
+                            n,
+                            t,
+                            trail.as_deref_mut(),
+                            Source::Rule,
+                            &mut cost,
+                        )?
                     };
                     between_worst = between_worst.max(v.est);
                     record.output(v)?;
