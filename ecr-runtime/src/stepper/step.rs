@@ -699,7 +699,10 @@ mod tests {
         let mut seeded = y0;
         stepper.seed(&stages).unwrap();
         let from_seed = stepper.step(&mut seeded).unwrap();
-        assert!(from_seed.sweeps < from_y0.sweeps, "{from_seed:?} vs {from_y0:?}");
+        assert!(
+            from_seed.sweeps < from_y0.sweeps,
+            "{from_seed:?} vs {from_y0:?}"
+        );
         for (a, b) in seeded.iter().zip(&plain) {
             assert!((a - b).abs() <= 1e-13, "{seeded:?} vs {plain:?}");
         }
