@@ -243,8 +243,10 @@ pub(super) fn hit(
             guess = Some((t0, slope));
         }
     }
-    // The search's values: the answer's steps alone (the check's is needed only where it stops).
-    let mut on_steps = |t: f64| -> Result<f64> {
+    // The search's values: the answer's steps alone (the check's is needed only where it
+    // stops), kept for that one.
+    let mut seen: Vec<Point> = Vec::new();
+    let mut on_steps = |t: f64, seen: &mut Vec<Point>| -> Result<f64> {
         let v = between(
             ctx,
             runs,
@@ -255,7 +257,9 @@ pub(super) fn hit(
             Source::Answer,
             cost,
         )?;
-        event.value(k, t, &v.y)
+        let e = event.value(k, t, &v.y)?;
+        seen.push(v);
+        Ok(e)
     };
     let (mut lo, mut hi) = ((prev.t, before), (p.t, after));
     let narrow = |(t, e): (f64, f64), lo: &mut (f64, f64), hi: &mut (f64, f64)| {
@@ -269,11 +273,11 @@ pub(super) fn hit(
     };
     if let Some((t0, slope)) = guess {
         if t0 > lo.0 && t0 < hi.0 {
-            let e0 = on_steps(t0)?;
+            let e0 = on_steps(t0, &mut seen)?;
             narrow((t0, e0), &mut lo, &mut hi);
             let t1 = t0 - 2.0 * e0 / slope;
             if e0 != 0.0 && t1 > lo.0 && t1 < hi.0 && t1 != t0 {
-                let e1 = on_steps(t1)?;
+                let e1 = on_steps(t1, &mut seen)?;
                 narrow((t1, e1), &mut lo, &mut hi);
             }
         }
@@ -281,11 +285,15 @@ pub(super) fn hit(
     let t_hit = if hi.1 == 0.0 {
         hi.0
     } else {
-        event.locate_within(STEPS_ULPS, lo, hi, on_steps)?
+        event.locate_within(STEPS_ULPS, lo, hi, |t| on_steps(t, &mut seen))?
     };
-    // Both runs there (the answer's step again, the same to the bit: the same start, the same
-    // seed), for the value's estimate.
-    between(ctx, runs, prev, n, t_hit, trail, Source::Steps, cost)
+    // The check's step there, for the value's estimate (both runs where the search stopped at
+    // a value it did not take: the end of the step).
+    let source = match seen.iter().rfind(|q| q.t == t_hit) {
+        Some(q) => Source::Check(&q.y),
+        None => Source::Steps,
+    };
+    between(ctx, runs, prev, n, t_hit, trail, source, cost)
 }
 
 #[cfg(test)]

@@ -10,6 +10,7 @@
 use std::sync::Arc;
 
 use super::SolveCache;
+use super::window::Which;
 use crate::error::{Error, Result};
 use crate::operator::{BankArithmetic, LinearOperator};
 use crate::stepper::{EcStepper, Predictor, RuntimeKernel, SolverSettings, StepReport};
@@ -84,8 +85,9 @@ pub(super) trait Runs {
     /// What a stepper reports (the states may then be anything: the caller restores them).
     fn step(&mut self, ya: &mut [f64], yc: &mut [f64], cost: &mut Cost) -> Result<()>;
     /// The values of the runs `dt` (≤ the step size) after the grid states `ya`, `yc`: one
-    /// step of size dt of each method (the check's only if there is one and `with_check`),
-    /// their stage iterations started from `seed` where given.
+    /// step of size dt of each method `which` names (the check's only if there is one; what is
+    /// not stepped is left as anything), their stage iterations started from `seed` where
+    /// given.
     ///
     /// # Errors
     /// What a stepper reports.
@@ -95,7 +97,7 @@ pub(super) trait Runs {
         dt: f64,
         out: (&mut [f64], &mut [f64]),
         seed: Option<Seed<'_>>,
-        with_check: bool,
+        which: Which,
         cost: &mut Cost,
     ) -> Result<()>;
     /// `y` moved along the vector field by `dt`, for a time within the rounding of a grid
@@ -349,7 +351,7 @@ impl<S: System> Runs for PairRuns<'_, S> {
         dt: f64,
         (oa, oc): (&mut [f64], &mut [f64]),
         seed: Option<Seed<'_>>,
-        with_check: bool,
+        which: Which,
         cost: &mut Cost,
     ) -> Result<()> {
         oa.copy_from_slice(ya);
@@ -357,16 +359,21 @@ impl<S: System> Runs for PairRuns<'_, S> {
         let seed = seed.filter(|_| seed_pays(self.swept.0, self.swept.1));
         let mut buf = std::mem::take(&mut self.seed_buf);
         let stepped = self.between(dt).and_then(|(answer, check)| {
-            let mut check = check.as_mut().filter(|_| with_check);
+            let mut check = check.as_mut().filter(|_| which != Which::Answer);
+            let with_answer = which != Which::Check;
             if let Some(seed) = seed {
-                seed_stepper(answer, seed, false, &mut buf)?;
+                if with_answer {
+                    seed_stepper(answer, seed, false, &mut buf)?;
+                }
                 if let Some(c) = check.as_deref_mut() {
                     seed_stepper(c, seed, true, &mut buf)?;
                 }
             }
-            let rep = answer.step(oa)?;
-            cost.dense_steps += 1;
-            cost.dense_g_evals += rep.g_evals;
+            if with_answer {
+                let rep = answer.step(oa)?;
+                cost.dense_steps += 1;
+                cost.dense_g_evals += rep.g_evals;
+            }
             if let Some(c) = check {
                 let rep = c.step(oc)?;
                 cost.dense_steps += 1;

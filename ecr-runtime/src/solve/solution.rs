@@ -468,13 +468,13 @@ impl<S: System> super::window::PartialSteps for FreshSteps<'_, S> {
         dt: f64,
         out: (&mut [f64], &mut [f64]),
         seed: Option<super::runs::Seed<'_>>,
-        with_check: bool,
+        which: super::window::Which,
     ) -> Result<()> {
         let cache = Arc::new(super::SolveCache::<S>::new(4));
         let mut runs = super::runs::PairRuns::new(
             self.system,
             self.r,
-            self.check && with_check,
+            self.check && which != super::window::Which::Answer,
             dt,
             self.settings,
             self.settings.banks,

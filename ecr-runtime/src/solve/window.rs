@@ -237,7 +237,7 @@ pub(super) fn between(
     n: usize,
     t: f64,
     trail: Option<&mut Trail>,
-    source: Source,
+    source: Source<'_>,
     cost: &mut Cost,
 ) -> Result<Point> {
     let d = base.answer.len();
@@ -271,8 +271,8 @@ pub(super) fn between(
 }
 
 /// Where a value between grid points comes from.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) enum Source {
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum Source<'a> {
     /// The interpolant where its estimate allows, else a step of each run (the one rule of
     /// [`value_between`]).
     Rule,
@@ -281,6 +281,17 @@ pub(super) enum Source {
     /// A step of the answer alone, without an estimate (a search's trial values: only the
     /// value it stops at needs the check's).
     Answer,
+    /// The answer's value given (a trial value of a search, where it stopped), and a step of
+    /// the check for its estimate.
+    Check(&'a [f64]),
+}
+
+/// Which runs a step to a value between grid points advances.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Which {
+    Both,
+    Answer,
+    Check,
 }
 
 /// What a value between grid points is asked for: the time, the grid point before it (its
@@ -296,7 +307,7 @@ pub(super) struct ValueAt<'a> {
     pub(super) verified: bool,
     /// Where the value comes from (the interpolant, where it does not serve the value, still
     /// starts the steps' stage iterations).
-    pub(super) source: Source,
+    pub(super) source: Source<'a>,
 }
 
 /// A stencil of the grid and its slopes (answer's, check's at the stencil's points).
@@ -315,8 +326,8 @@ pub(super) trait PartialSteps {
     /// [`Error::NonFinite`] if the field is not finite there.
     fn drift(&mut self, y: &mut [f64], dt: f64) -> Result<()>;
     /// One step of length `dt` of the answer's method from `from.0` into `out.0` and of the
-    /// check's from `from.1` into `out.1` (unless `with_check` is false: `out.1` is then left
-    /// as it is), their stage iterations started from `seed` where given.
+    /// check's from `from.1` into `out.1`, or only those `which` names (what is not stepped
+    /// may be left as anything), their stage iterations started from `seed` where given.
     ///
     /// # Errors
     /// What the steps report.
@@ -326,7 +337,7 @@ pub(super) trait PartialSteps {
         dt: f64,
         out: (&mut [f64], &mut [f64]),
         seed: Option<Seed<'_>>,
-        with_check: bool,
+        which: Which,
     ) -> Result<()>;
 }
 
@@ -343,9 +354,9 @@ impl PartialSteps for RunSteps<'_> {
         dt: f64,
         out: (&mut [f64], &mut [f64]),
         seed: Option<Seed<'_>>,
-        with_check: bool,
+        which: Which,
     ) -> Result<()> {
-        self.0.partial(from, dt, out, seed, with_check, self.1)
+        self.0.partial(from, dt, out, seed, which, self.1)
     }
 }
 
@@ -400,9 +411,16 @@ pub(super) fn value_between(
     };
     let mut yc = vec![0.0; out.len()];
     let seed: Option<Seed<'_>> = interp.is_some().then_some(&seed);
-    let with_check = source != Source::Answer;
-    steps.partial((answer, check), dt, (out, &mut yc), seed, with_check)?;
-    if !verified || !with_check {
+    let which = match source {
+        Source::Rule | Source::Steps => Which::Both,
+        Source::Answer => Which::Answer,
+        Source::Check(_) => Which::Check,
+    };
+    steps.partial((answer, check), dt, (out, &mut yc), seed, which)?;
+    if let Source::Check(given) = source {
+        out.copy_from_slice(given);
+    }
+    if !verified || which == Which::Answer {
         return Ok(0.0);
     }
     let e = super::runs::estimate(tolerance, unit, out, &yc, n + 1);
