@@ -401,7 +401,6 @@ pub(super) fn value_between(
         if e <= INTERP_MAX {
             return Ok(e);
         }
-        out.copy_from_slice(answer);
     }
     let seed = |nodes: &[f64], check: bool, out: &mut [f64]| {
         if let Some((grid, stencil, sa, sc)) = &interp {

@@ -12,6 +12,7 @@ use super::iteration::Effort;
 use super::kernel::{FixedKernel, Kernel, RuntimeKernel, kernel_coefficients};
 use super::newton::{NewtonState, newton_entries};
 use super::parallel::ParallelState;
+use super::predictor::GuessBackoff;
 use super::settings::{Predictor, SolverSettings, StageScale, StageSolver, StepReport, SweepLimit};
 use super::stopping::{Y1_OVERFLOWED, all_finite, g_fault};
 use crate::error::{Error, Result};
@@ -55,54 +56,6 @@ pub struct Stepper<K: Kernel, S: System, B: Buffers> {
     guess: GuessBackoff,
     /// Stage values for the next step only ([`seed`](Stepper::seed)), s·d numbers, or empty.
     seed: Vec<f64>,
-}
-
-/// When to try the extrapolated guess ([`Predictor::Extrapolate`]) again after it failed.
-///
-/// The guess is only a starting point: where the previous step's continuous solution does not
-/// extend well beyond its step (wind, r ≥ 8 at h ≥ 0.25), the iteration from it can diverge
-/// where the iteration from y₀ converges. A step whose iteration from the guess fails (an error,
-/// or the sweep limit with [`SweepLimit::Error`]) is restarted from y₀; the next `wait` steps
-/// then start from y₀, and the guess is tried again after 1, 2, 4, … such steps while it keeps
-/// failing (the wait doubles up to [`GuessBackoff::MAX_WAIT`]; a guess that converges resets
-/// it). Steps whose guess converges are unchanged, bit for bit.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-struct GuessBackoff {
-    /// Steps still to start from y₀ before the guess is tried again.
-    wait: usize,
-    /// The wait after the next failure of the guess.
-    next_wait: usize,
-}
-
-impl GuessBackoff {
-    /// The longest wait: the guess is tried at least once every this many steps, so that a run
-    /// whose guess fails only in a stretch of it gets the guess back soon after.
-    const MAX_WAIT: usize = 64;
-
-    const FRESH: GuessBackoff = GuessBackoff {
-        wait: 0,
-        next_wait: 1,
-    };
-
-    /// Whether this step starts from the guess (else from y₀, counting down the wait).
-    fn try_guess(&mut self) -> bool {
-        if self.wait == 0 {
-            return true;
-        }
-        self.wait -= 1;
-        false
-    }
-
-    /// The guess failed: wait, and wait twice as long after the next failure.
-    fn failed(&mut self) {
-        self.wait = self.next_wait;
-        self.next_wait = (2 * self.next_wait).min(Self::MAX_WAIT);
-    }
-
-    /// The guess converged.
-    fn converged(&mut self) {
-        self.next_wait = 1;
-    }
 }
 
 /// ECrP with r and s chosen at run time.
@@ -573,14 +526,12 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
                             guess.failed();
                         }
                         (extrapolate, seeded) = (false, false);
-                        seed.clear();
                         continue;
                     }
                     if extrapolate {
                         guess.converged();
                     }
                 }
-                seed.clear();
                 let (start_evals, it) = attempt?;
                 break (start_evals, it, effort, newton_counts);
             };
@@ -662,60 +613,5 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
         let coef = kernel_coefficients(self.h, &[tau], r);
         bank.combine(0..1, y0, self.buf.moments(), &coef, &mut out, &mut ws);
         Ok(out)
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::operator::Zero;
-    use crate::system::Semilinear;
-
-    /// Lotka–Volterra at h = 0.78 (g far from linear over a step): a step seeded with its own
-    /// stage values from a first run converges at once to the same y₁ (within the stage
-    /// tolerance) in fewer sweeps than from y₀; a seed of NaN falls back to y₀ (the same
-    /// sweeps and y₁ as an unseeded step, its own work counted); a seed of the wrong length is
-    /// an error; a seed serves one step only.
-    #[test]
-    fn a_seed_starts_one_step_and_a_bad_one_falls_back() {
-        let system = Semilinear::new(Zero::new(2), |y: &[f64], g: &mut [f64]| {
-            g[0] = y[0] * (2.0 / 3.0 - 4.0 / 3.0 * y[1]);
-            g[1] = y[1] * (y[0] - 1.0);
-        });
-        let settings = SolverSettings {
-            predictor: Predictor::Constant,
-            ..SolverSettings::default()
-        };
-        let (r, h, y0) = (4, 0.78, [0.9, 0.9]);
-        let mut stepper = EcStepper::with_nodes(&system, r, r, h, settings).unwrap();
-        let mut plain = y0;
-        let from_y0 = stepper.step(&mut plain).unwrap();
-        // The converged stages of that step: its continuous solution at the nodes.
-        let nodes = stepper.kernel().nodes().to_vec();
-        let mut stages = Vec::new();
-        for &c in &nodes {
-            stages.extend(stepper.dense_output(c).unwrap());
-        }
-        let mut seeded = y0;
-        stepper.seed(&stages).unwrap();
-        let from_seed = stepper.step(&mut seeded).unwrap();
-        assert!(
-            from_seed.sweeps < from_y0.sweeps,
-            "{from_seed:?} vs {from_y0:?}"
-        );
-        for (a, b) in seeded.iter().zip(&plain) {
-            assert!((a - b).abs() <= 1e-13, "{seeded:?} vs {plain:?}");
-        }
-        // Served once: the next step starts from y₀ again, as the first did.
-        let mut again = y0;
-        assert_eq!(stepper.step(&mut again).unwrap().sweeps, from_y0.sweeps);
-        assert_eq!(again, plain);
-        // A seed that fails: from y₀, its work counted besides.
-        stepper.seed(&vec![f64::NAN; stages.len()]).unwrap();
-        let mut fallback = y0;
-        let rep = stepper.step(&mut fallback).unwrap();
-        assert_eq!(fallback, plain);
-        assert!(rep.g_evals > from_y0.g_evals, "{rep:?} vs {from_y0:?}");
-        assert!(stepper.seed(&stages[1..]).is_err());
     }
 }
