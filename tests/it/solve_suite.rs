@@ -321,15 +321,23 @@ fn no_false_ok_but_the_known_ones() {
     );
 }
 
-/// Acceptance (issue 42): at least 85 % of the (problem, tolerance) pairs `Ok`. Not met on
-/// 2026-11-28, with the order pair: 170 of 207 (82.1 %), none of them false (2026-11-27 with the
-/// 2h/3h check: 155, 74.9 %). The refusals: duffing_sep (9) and pendulum_sep (8) on their
-/// separatrices, lorenz_long (6), lorenz, pendulum and henon_heiles at tight tolerances (5),
-/// all with the estimate passing the tolerance however small the step; kepler_passage (9),
-/// which ends at a close passage.
+/// No pair costs more than 4 million evaluations of g, refused or not (the largest 1.4 million
+/// on 2026-11-29: lorenz at 1e−11). A run started again in the local mode whose steps shrank
+/// for what was rounding took 12 million at duffing_sep 1e−11 and 3.6·10⁹ at 1e−9
+/// (docs/solve.md §3).
 #[test]
-#[ignore = "target not met: 170 of 207 Ok (82.1 %), no false Ok (2026-11-28)"]
-fn acceptance_at_least_85_percent_ok() {
+fn no_pair_costs_more_than_4_million_evaluations() {
+    let over: Vec<String> = sweep()
+        .rows
+        .iter()
+        .filter(|r| r.g_evals > 4_000_000)
+        .map(|r| format!("{} {:.0e}: {} evaluations of g", r.case, r.tol, r.g_evals))
+        .collect();
+    assert!(over.is_empty(), "{}", over.join("\n"));
+}
+
+/// The share of (problem, tolerance) pairs `Ok`, with those that are not.
+fn ok_share() -> (usize, usize, String) {
     let n = sweep().rows.len();
     let ok = oks().len();
     let not: Vec<String> = sweep()
@@ -338,11 +346,35 @@ fn acceptance_at_least_85_percent_ok() {
         .filter(|r| r.kind != Kind::Ok)
         .map(|r| format!("{} {:.0e} {:?}", r.case, r.tol, r.kind))
         .collect();
+    (ok, n, not.join(", "))
+}
+
+/// Acceptance (issue 42): at least 85 % of the (problem, tolerance) pairs `Ok`. Met since the
+/// local mode of a run started again (docs/solve.md §3): 184 of 207 (88.9 %) on 2026-11-29,
+/// 178 before it, 170 on 2026-11-28.
+#[test]
+fn acceptance_at_least_85_percent_ok() {
+    let (ok, n, not) = ok_share();
     assert!(
         ok as f64 >= 0.85 * n as f64,
-        "{ok} of {n} pairs Ok ({:.1} %, need 85 %); not Ok: {}",
+        "{ok} of {n} pairs Ok ({:.1} %, need 85 %); not Ok: {not}",
         100.0 * ok as f64 / n as f64,
-        not.join(", ")
+    );
+}
+
+/// Acceptance (issue 55): at least 90 % of the pairs `Ok`. Not met on 2026-11-29: 184 of 207
+/// (88.9 %). The 23 refusals: duffing_sep (8) and pendulum_sep (3) on their separatrices,
+/// lorenz_long (4), lorenz, pendulum and henon_heiles at 1e−10 … 1e−11 (5), all with the
+/// estimate passing the tolerance however small the step; kepler_passage at 1e−9 … 1e−11 (3),
+/// where what a step makes at the passage is below the rounding that can be told from it.
+#[test]
+#[ignore = "target not met: 184 of 207 Ok (88.9 %), no false Ok (2026-11-29)"]
+fn acceptance_at_least_90_percent_ok() {
+    let (ok, n, not) = ok_share();
+    assert!(
+        ok as f64 >= 0.9 * n as f64,
+        "{ok} of {n} pairs Ok ({:.1} %, need 90 %); not Ok: {not}",
+        100.0 * ok as f64 / n as f64,
     );
 }
 

@@ -2,12 +2,12 @@
 //! the first step size, the runs ([`run`]), and a run started again — aiming lower, with a
 //! smaller step — when the estimate cannot be kept within the tolerance otherwise.
 
-use super::control::{Attempt, run};
+use super::control::{Attempt, Local, run};
 use super::pilot::pilot;
 use super::record::{Observer, Point, Record};
 use super::runs::{Make, Runs};
 use super::solution::Stats;
-use super::window::{Ctx, LIMIT};
+use super::window::{Ctx, LIMIT, TARGET};
 use crate::error::Result;
 
 /// Runs started again from t₀ before the solve gives up.
@@ -19,6 +19,9 @@ const P_RESTART: f64 = 4.0;
 /// A restart makes the step at most this much smaller (a projection of a chaotic run's
 /// estimate can call for steps that would cost thousands of times the run).
 const RESTART_MIN: f64 = 0.5;
+
+/// The first local mode's target per unit time, as a share of TARGET / span.
+const LOCAL_FIRST: f64 = 0.1;
 
 /// The step of a run started again after one whose estimate projects to `TARGET / factor`:
 /// h·factor^(1/P_RESTART), between RESTART_MIN and 0.7 of h.
@@ -78,10 +81,21 @@ fn attempts(
     let mut last_reason = String::new();
     // The step and the time at which the last attempt failed.
     let mut failed_at: Option<(f64, f64)> = None;
+    // The local mode's target, once a run has started again (see `run`).
+    let mut local: Option<Local> = None;
     for attempt in 0..=MAX_RESTARTS {
-        options.say(|| format!("run: EC{r}P checked by EC{}P-Lobatto, h = {h:.6e}", r - 1));
+        options.say(|| {
+            format!(
+                "run: EC{r}P checked by EC{}P-Lobatto, h = {h:.6e}{}",
+                r - 1,
+                local.map_or(String::new(), |l| format!(
+                    ", each step within {:.3e} per unit step, h ≤ {:.3e}",
+                    l.rate, l.cap
+                ))
+            )
+        });
         let mut runs = make(r, true, h)?;
-        match run(ctx, &mut *runs, r, h, false, observer, &mut stats)? {
+        match run(ctx, &mut *runs, r, h, false, local, observer, &mut stats)? {
             Attempt::Done(record) => {
                 let worst = record.worst();
                 let unverified = (worst.is_nan() || worst > LIMIT).then(|| {
@@ -137,7 +151,7 @@ fn attempts(
                         record
                     } else {
                         let mut runs = make(r, true, h)?;
-                        match run(ctx, &mut *runs, r, h, true, observer, &mut stats)? {
+                        match run(ctx, &mut *runs, r, h, true, None, observer, &mut stats)? {
                             Attempt::Done(record)
                             | Attempt::Again { record, .. }
                             | Attempt::Failed { record, .. } => record,
@@ -157,6 +171,13 @@ fn attempts(
                 // smaller (far from the asymptotic regime, where the cheapest runs are, the
                 // estimate falls more slowly than h^p).
                 h = h_next(h, factor);
+                local = Some(Local {
+                    rate: match local {
+                        None => LOCAL_FIRST * TARGET / span,
+                        Some(l) => l.rate * (0.8 * factor).clamp(0.05, 0.7),
+                    },
+                    cap: h,
+                });
                 last_reason = reason;
             }
             Attempt::Failed { record, reason } => {

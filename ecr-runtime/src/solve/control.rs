@@ -9,7 +9,7 @@ use super::runs::{Cost, Runs};
 use super::solution::{Stats, Status};
 use super::window::{
     Ctx, GridPoint, LIMIT, P_BOLD, State, StepFailure, TARGET, Trail, advance, check_order, keep,
-    resolution, start_outputs,
+    made_all, resolution, start_outputs,
 };
 use crate::error::{Error, Result};
 
@@ -22,6 +22,12 @@ const STUCK_LIMIT: usize = 8;
 /// A window is integrated again at most this often (while a smaller step brings its estimate
 /// down) before the run starts again.
 const MAX_WINDOW_TRIES: usize = 24;
+
+/// What a step makes alone, in units of the tolerance, that the local mode never cuts a step
+/// for: 10⁸ such steps would make the tolerance. Below it, what a step makes may not shrink
+/// with the step at all (the rounding of a component near zero), and cutting for it would
+/// not end.
+const MADE_NEGLIGIBLE: f64 = 1e-8;
 
 /// The estimate's rate of growth is read off the windows of the last 1/RECENT of the span.
 const RECENT: f64 = 16.0;
@@ -57,6 +63,16 @@ pub(super) enum Attempt {
     Failed { record: Record, reason: String },
 }
 
+/// A run in the local mode (after a run started again): each step is measured against the
+/// check's step from the answer's state before it ([`Runs::step_local`]), what it makes alone,
+/// and the step size keeps that within `rate` per unit step (in units of the tolerance), never
+/// above `cap`.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Local {
+    pub(super) rate: f64,
+    pub(super) cap: f64,
+}
+
 /// The step of the ladder at or below h.
 pub(super) fn on_ladder(h: f64, base: f64) -> f64 {
     let k = (LADDER * (h / base).log2()).floor();
@@ -86,7 +102,8 @@ fn project(history: &[(f64, f64)], t: f64, worst: f64, ctx: &Ctx<'_>) -> f64 {
     linear.max(exponential).min(1e12)
 }
 
-/// One run from t₀ at order 2r with the check, in windows of steps.
+/// One run from t₀ at order 2r with the check, in windows of steps; with `local`, in the
+/// local mode ([`Local`], docs/solve.md §3).
 ///
 /// The step is the run's level `base`, constant unless the estimate says otherwise: the level
 /// makes the estimate, growing as it grew since the level last changed (from t₀: linearly from
@@ -104,13 +121,17 @@ pub(super) fn run(
     r: usize,
     h0: f64,
     permissive: bool,
+    local: Option<Local>,
     observer: &mut Observer<'_>,
     stats: &mut Stats,
 ) -> Result<Attempt> {
     let options = ctx.options;
     let p = check_order(r);
     let span = ctx.t_end - ctx.t0;
-    let max_step = options.max_step.min(span);
+    let max_step = options
+        .max_step
+        .min(span)
+        .min(local.map_or(f64::INFINITY, |l| l.cap));
     let ladder = h0;
     let mut base = h0.min(max_step);
     let mut h = on_ladder(base, ladder);
@@ -152,6 +173,19 @@ pub(super) fn run(
     // The estimate after each kept window, (t, worst), for the projection of a run that
     // starts again.
     let mut history: Vec<(f64, f64)> = Vec::new();
+    // In the local mode, what each step of the window made ([`advance`]) and the largest per
+    // unit step.
+    let mut made = local.map(|_| Vec::new());
+    let (mut made_rate, mut trend) = (0.0_f64, 1.0_f64);
+    // The local mode's last step made smaller (its size, what the step made and where the
+    // next window starts), to see whether that helped; and what a step makes that smaller
+    // steps did not bring down (in units of the tolerance), counted as nothing from then on.
+    let mut probe: Option<(f64, f64, f64)> = None;
+    let mut made_floor = MADE_NEGLIGIBLE;
+    // The local mode's last cut (what the step made per unit step, its size, where it
+    // started), and whether the window is taken without the limit.
+    let mut last_cut: Option<(f64, f64, f64)> = None;
+    let mut relax = false;
     while state.t < ctx.t_end - ctx.same_time && !record.ended() {
         let stop = ctx.next_stop(state.t);
         let room = stop - state.t;
@@ -195,7 +229,16 @@ pub(super) fn run(
             (state.t, 0)
         };
         let mut cost = Cost::default();
-        let mut points = match advance(ctx, runs, &state, origin, steps, end, &mut cost) {
+        let mut points = match advance(
+            ctx,
+            runs,
+            &state,
+            origin,
+            steps,
+            end,
+            made.as_mut(),
+            &mut cost,
+        ) {
             Ok(points) => points,
             Err(StepFailure { t, h: hf, error }) => {
                 stats.discard(&cost);
@@ -216,6 +259,104 @@ pub(super) fn run(
                 continue;
             }
         };
+        // The local mode: a step that made more than the limit is taken again with a smaller
+        // step, and the steps before it are kept.
+        let mut cut = false;
+        if let (Some(Local { rate: rho, .. }), Some(m)) = (local, made.as_mut()) {
+            // A smaller step that made about as much as the larger one just before it or in its
+            // place (less than the square of their ratio would take off; a smooth error falls
+            // by the power p + 1): what a step makes here is rounding, not the method's error,
+            // and steps are not made smaller for it again.
+            let first = m.first().copied().unwrap_or(0.0);
+            if let Some((hp, mp, tp)) = probe.take() {
+                if state.t == tp && hw < hp && first >= made_floor && first > mp * (hw / hp).powi(2)
+                {
+                    made_floor = made_floor.max(2.0 * first);
+                    options.say(|| {
+                        format!(
+                            "t = {:?}: h = {hw:.4e} made {first:.3e} where h = {hp:.4e} made \
+                             {mp:.3e} → from now on a step may make {:.3e}",
+                            state.t, made_floor
+                        )
+                    });
+                }
+            }
+            // A step may make up to twice the target, and never needs to make less than the
+            // floor. The first and last steps are measured; where one makes more, every step
+            // is, and the window is cut before the first that does.
+            let floor = made_floor;
+            let limit = if permissive || relax {
+                f64::INFINITY
+            } else {
+                (2.0 * rho * hw).max(floor)
+            };
+            // What the measured steps made, each counted as 0 below the floor.
+            let measured = |m: &[f64]| {
+                m.iter()
+                    .filter(|&&x| x >= floor)
+                    .fold(0.0_f64, |a, &b| a.max(b))
+            };
+            let j_cut = if measured(m) > limit {
+                made_all(ctx, runs, &state.answer, &points, m, &mut cost);
+                m.iter().position(|&x| x > limit)
+            } else {
+                None
+            };
+            made_rate = measured(m) / hw;
+            // Where what the steps make grew across the window (an approach), the next window
+            // makes more again: the trend, first step to last, carried forward.
+            trend = match (m.first(), m.last()) {
+                (Some(&a), Some(&b)) if a >= floor && b > a => (b / a).min(1e6),
+                _ => 1.0,
+            };
+            if let Some(j) = j_cut {
+                let rate = m[j] / hw;
+                let t_start = if j == 0 { state.t } else { points[j - 1].t };
+                // Compared with the last cut where this is the same step made smaller: the
+                // first of a window that starts where that step started.
+                let helped = last_cut
+                    .is_none_or(|(g, hc, tc)| j > 0 || state.t != tc || hw >= hc || rate < 0.7 * g);
+                if helped && retries < MAX_WINDOW_TRIES && hw > resolution(state.t) * 16.0 {
+                    stats.retries += 1;
+                    retries += 1;
+                    last_cut = Some((rate, hw, t_start));
+                    probe = Some((hw, m[j], t_start));
+                    let factor = (0.5 * rho / rate)
+                        .powf(1.0 / p.min(P_BOLD))
+                        .clamp(0.125, 0.5);
+                    options.say(|| {
+                        format!(
+                            "window at t = {:?}, h = {hw:.4e}: the step from t = {t_start:?} \
+                             makes {rate:.3e} per unit step (target {rho:.3e}) → from there \
+                             with h × {factor:.3}",
+                            state.t
+                        )
+                    });
+                    h = on_ladder(hw * factor, ladder);
+                    if j == 0 {
+                        stats.discard(&cost);
+                        continue;
+                    }
+                    let whole = points.len();
+                    stats.discard(&cost.take_share(whole - j, whole));
+                    points.truncate(j);
+                    cut = true;
+                } else {
+                    // A smaller step does not make less per unit step (a jump of g makes an
+                    // error in proportion to the step over it): taken as it is.
+                    stats.discard(&cost);
+                    relax = true;
+                    options.say(|| {
+                        format!(
+                            "window at t = {:?}, h = {hw:.4e}: a smaller step made as much per \
+                             unit step → taken as it is",
+                            state.t
+                        )
+                    });
+                    continue;
+                }
+            }
+        }
         let last = points.last().expect("a window has a step");
         let worst = points.iter().map(|q| q.est).fold(state.worst, f64::max);
         let growth = worst - state.worst;
@@ -227,15 +368,20 @@ pub(super) fn run(
         // A retry whose estimate fell by far more than the check's order allows: the two methods
         // may err alike by chance at a kink of g in this window (their difference vanishes where
         // their quadrature errors cross); once more with another step, which takes its estimate.
-        let rate_now = growth / duration;
-        let implausible = rejected
-            .is_some_and(|(g, hr)| hw < hr && rate_now < g * (hw / hr).powf(p + 2.0) && !doubted);
-        if implausible && retries < MAX_WINDOW_TRIES && !permissive {
-            stats.discard(&cost);
-            stats.retries += 1;
-            retries += 1;
-            doubted = true;
-            options.say(|| {
+        // A window cut in the local mode keeps its steps before the cut, as one shortened at a
+        // feature does.
+        let mut shrunk = cut && !over;
+        {
+            let rate_now = growth / duration;
+            let implausible = rejected.is_some_and(|(g, hr)| {
+                hw < hr && rate_now < g * (hw / hr).powf(p + 2.0) && !doubted
+            });
+            if implausible && retries < MAX_WINDOW_TRIES && !permissive && !cut {
+                stats.discard(&cost);
+                stats.retries += 1;
+                retries += 1;
+                doubted = true;
+                options.say(|| {
                 format!(
                     "window at t = {:?}, h = {hw:.4e}: estimate fell from {:.3e} to {rate_now:.3e} per \
                      unit time, more than the order explains → again with h × 0.7",
@@ -243,47 +389,46 @@ pub(super) fn run(
                     rejected.map_or(0.0, |r| r.0)
                 )
             });
-            h = on_ladder(hw * 0.7, ladder);
-            continue;
-        }
-        // A feature inside one step of the window — a jump or a kink of g at a time nobody
-        // announced, a close passage — adds its error in that step: the step that carries most
-        // of the window's growth. Its step is made smaller while that brings what the step adds
-        // down (compared as it is, not per unit time: the error of a jump is made once, in
-        // proportion to the step over it), the steps before it are kept, and the steps grow
-        // back after it.
-        let mut shrunk = false;
-        if (over || growth > 0.5 * room) && !permissive {
-            let local = local_step(&points, state.worst)
-                .filter(|_| retries < MAX_WINDOW_TRIES && hw > resolution(state.t) * 16.0);
-            if let Some((j, delta)) = local {
-                let helped = feature.is_none_or(|f: Feature| delta < 0.7 * f.delta);
-                if helped {
-                    // The order of what the step adds, seen from the last two tries at this
-                    // feature (a jump of g: 1; a kink: 2; a smooth passage: the check's), or
-                    // 2 at the first try.
-                    let (q, least) = match feature {
-                        Some(f) if hw < f.h && delta < f.delta => (
-                            ((f.delta / delta).ln() / (f.h / hw).ln()).clamp(1.0, P_BOLD),
-                            1.0 / 64.0,
-                        ),
-                        _ => (2.0, 0.125),
-                    };
-                    let factor = (0.25 * room / delta).powf(1.0 / q).clamp(least, 0.5);
-                    feature = Some(Feature {
-                        delta,
-                        h: hw,
-                        until: points[j].t,
-                    });
-                    stats.retries += 1;
-                    retries += 1;
-                    h = on_ladder(hw * factor, ladder);
-                    let before = points[..j]
-                        .iter()
-                        .map(|q| q.est)
-                        .fold(state.worst, f64::max);
-                    let t_feature = points[j].t;
-                    options.say(|| {
+                h = on_ladder(hw * 0.7, ladder);
+                continue;
+            }
+            // A feature inside one step of the window — a jump or a kink of g at a time nobody
+            // announced, a close passage — adds its error in that step: the step that carries most
+            // of the window's growth. Its step is made smaller while that brings what the step adds
+            // down (compared as it is, not per unit time: the error of a jump is made once, in
+            // proportion to the step over it), the steps before it are kept, and the steps grow
+            // back after it.
+            if (over || growth > 0.5 * room) && !permissive && !shrunk {
+                let local = local_step(&points, state.worst)
+                    .filter(|_| retries < MAX_WINDOW_TRIES && hw > resolution(state.t) * 16.0);
+                if let Some((j, delta)) = local {
+                    let helped = feature.is_none_or(|f: Feature| delta < 0.7 * f.delta);
+                    if helped {
+                        // The order of what the step adds, seen from the last two tries at this
+                        // feature (a jump of g: 1; a kink: 2; a smooth passage: the check's), or
+                        // 2 at the first try.
+                        let (q, least) = match feature {
+                            Some(f) if hw < f.h && delta < f.delta => (
+                                ((f.delta / delta).ln() / (f.h / hw).ln()).clamp(1.0, P_BOLD),
+                                1.0 / 64.0,
+                            ),
+                            _ => (2.0, 0.125),
+                        };
+                        let factor = (0.25 * room / delta).powf(1.0 / q).clamp(least, 0.5);
+                        feature = Some(Feature {
+                            delta,
+                            h: hw,
+                            until: points[j].t,
+                        });
+                        stats.retries += 1;
+                        retries += 1;
+                        h = on_ladder(hw * factor, ladder);
+                        let before = points[..j]
+                            .iter()
+                            .map(|q| q.est)
+                            .fold(state.worst, f64::max);
+                        let t_feature = points[j].t;
+                        options.say(|| {
                         format!(
                             "window at t = {:?}, h = {hw:.4e}: the step to t = {t_feature:?} adds \
                              {delta:.3e} of the estimate's {growth:.3e} → that step again with \
@@ -291,65 +436,69 @@ pub(super) fn run(
                             state.t
                         )
                     });
-                    if j > 0 && before <= LIMIT && before - state.worst <= 0.5 * room {
-                        // Keep the steps before the feature.
-                        stats.discard(&cost.take_share(points.len() - j, points.len()));
-                        points.truncate(j);
-                        shrunk = true;
-                    } else {
-                        stats.discard(&cost);
-                        continue;
+                        if j > 0 && before <= LIMIT && before - state.worst <= 0.5 * room {
+                            // Keep the steps before the feature.
+                            stats.discard(&cost.take_share(points.len() - j, points.len()));
+                            points.truncate(j);
+                            shrunk = true;
+                        } else {
+                            stats.discard(&cost);
+                            continue;
+                        }
                     }
+                }
+            }
+            let last = points.last().expect("a window has a step");
+            let worst = points.iter().map(|q| q.est).fold(state.worst, f64::max);
+            let growth = worst - state.worst;
+            if (over || growth > 0.5 * room) && !permissive && !shrunk {
+                // A smaller step for this window while that brings its growth down. Compared per
+                // unit time: a smaller step also makes the window shorter, which lowers the growth
+                // of an error carried into it (amplified by the flow) as much as its duration, that
+                // of an error made in it by the order of the check besides.
+                let rate = growth / duration;
+                let helped = rejected.is_none_or(|(g, _)| rate < g * 0.7);
+                if helped && retries < MAX_WINDOW_TRIES && hw > resolution(state.t) * 16.0 {
+                    stats.discard(&cost);
+                    stats.retries += 1;
+                    retries += 1;
+                    rejected = Some((rate, hw));
+                    let want = 0.25 * room;
+                    let factor = if growth > 0.0 && want > 0.0 {
+                        (want / growth).powf(1.0 / p.min(P_BOLD)).clamp(0.125, 0.5)
+                    } else {
+                        0.5
+                    };
+                    options.say(|| {
+                        format!(
+                            "window at t = {:?}, h = {hw:.4e}: estimate {worst:.3e} (growth \
+                         {growth:.3e}) → again with h × {factor:.3}",
+                            state.t
+                        )
+                    });
+                    h = on_ladder(hw * factor, ladder);
+                    continue;
+                }
+                if over {
+                    stats.discard(&cost);
+                    let projected = project(&history, last.t, worst.max(LIMIT), ctx);
+                    return Ok(Attempt::Again {
+                        record,
+                        factor: TARGET / projected,
+                        at: last.t,
+                        noise: ctx.noise(&last.answer, state.n + points.len()),
+                        reason: format!(
+                            "the estimate reaches {worst:.3e} times the tolerance at t = {:?} and a \
+                         smaller step for that stretch does not bring it down",
+                            last.t
+                        ),
+                    });
                 }
             }
         }
         let last = points.last().expect("a window has a step");
         let worst = points.iter().map(|q| q.est).fold(state.worst, f64::max);
         let growth = worst - state.worst;
-        if (over || growth > 0.5 * room) && !permissive && !shrunk {
-            // A smaller step for this window while that brings its growth down. Compared per
-            // unit time: a smaller step also makes the window shorter, which lowers the growth
-            // of an error carried into it (amplified by the flow) as much as its duration, that
-            // of an error made in it by the order of the check besides.
-            let rate = growth / duration;
-            let helped = rejected.is_none_or(|(g, _)| rate < g * 0.7);
-            if helped && retries < MAX_WINDOW_TRIES && hw > resolution(state.t) * 16.0 {
-                stats.discard(&cost);
-                stats.retries += 1;
-                retries += 1;
-                rejected = Some((rate, hw));
-                let want = 0.25 * room;
-                let factor = if growth > 0.0 && want > 0.0 {
-                    (want / growth).powf(1.0 / p.min(P_BOLD)).clamp(0.125, 0.5)
-                } else {
-                    0.5
-                };
-                options.say(|| {
-                    format!(
-                        "window at t = {:?}, h = {hw:.4e}: estimate {worst:.3e} (growth \
-                         {growth:.3e}) → again with h × {factor:.3}",
-                        state.t
-                    )
-                });
-                h = on_ladder(hw * factor, ladder);
-                continue;
-            }
-            if over {
-                stats.discard(&cost);
-                let projected = project(&history, last.t, worst.max(LIMIT), ctx);
-                return Ok(Attempt::Again {
-                    record,
-                    factor: TARGET / projected,
-                    at: last.t,
-                    noise: ctx.noise(&last.answer, state.n + points.len()),
-                    reason: format!(
-                        "the estimate reaches {worst:.3e} times the tolerance at t = {:?} and a \
-                         smaller step for that stretch does not bring it down",
-                        last.t
-                    ),
-                });
-            }
-        }
         // Keep the window (unless its values between grid points are over the tolerance).
         let mark = record.mark();
         let (ev_save, t_eval_save) = (ev_prev.clone(), t_eval_next);
@@ -513,6 +662,30 @@ pub(super) fn run(
                 std::f64::consts::SQRT_2
             };
             h = on_ladder(base.min(max_step).min(up * hw), ladder);
+        }
+        if let Some(Local { rate: rho, .. }) = local {
+            if !cut {
+                (last_cut, relax) = (None, false);
+                // Error per unit step: down to half the target where a step made more than it,
+                // up (by up to 2) only where that grows the step by a fourth at least; constant
+                // in between (segments of one step size). The step is the smaller of this and
+                // the one the estimate calls for.
+                let ahead = made_rate * trend;
+                let aim = (0.5 * rho / ahead.max(f64::MIN_POSITIVE)).powf(1.0 / p);
+                let factor = if ahead > rho {
+                    aim.max(0.5)
+                } else if aim >= 1.25 {
+                    aim.min(2.0)
+                } else {
+                    1.0
+                };
+                let mine = on_ladder((hw * factor).min(max_step), ladder);
+                if mine < h {
+                    let last = made.as_deref().and_then(|m| m.last()).copied();
+                    probe = last.filter(|x| !x.is_nan()).map(|x| (hw, x, state.t));
+                }
+                h = h.min(mine);
+            }
         }
         options.say(|| {
             format!(

@@ -58,7 +58,7 @@ pub(super) fn fixed(
         };
         runs.set_step_size(size)?;
         let mut cost = Cost::default();
-        let mut points = advance(ctx, runs, &state, origin, steps, end, &mut cost).map_err(
+        let mut points = advance(ctx, runs, &state, origin, steps, end, None, &mut cost).map_err(
             |StepFailure { t, h, error }| Error::AtStep {
                 step: done + 1,
                 t,

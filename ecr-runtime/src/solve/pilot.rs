@@ -72,6 +72,7 @@ pub(super) fn pilot(
                 (ctx.t0, 0),
                 steps,
                 None,
+                None,
                 &mut cost,
             );
             stats.pilot(&cost);

@@ -84,6 +84,13 @@ pub(super) trait Runs {
     /// # Errors
     /// What a stepper reports (the states may then be anything: the caller restores them).
     fn step(&mut self, ya: &mut [f64], yc: &mut [f64], cost: &mut Cost) -> Result<()>;
+    /// One step of the check from `from` (the answer's state before a step) into `out`: set
+    /// against the answer's step from the same state, the error the check makes in that step
+    /// alone, which the flow has not carried (counted as the check's).
+    ///
+    /// # Errors
+    /// What the stepper reports.
+    fn step_local(&mut self, from: &[f64], out: &mut [f64], cost: &mut Cost) -> Result<()>;
     /// The values of the runs `dt` (≤ the step size) after the grid states `ya`, `yc`: one
     /// step of size dt of each method `which` names (the check's only if there is one; what is
     /// not stepped is left as anything), their stage iterations started from `seed` where
@@ -197,6 +204,8 @@ pub(super) struct PairRuns<'a, S: System> {
     answer: EcStepper<&'a S>,
     check: Option<EcStepper<&'a S>>,
     between: Option<(EcStepper<&'a S>, Option<EcStepper<&'a S>>)>,
+    /// The check's stepper for [`Runs::step_local`], built the first time.
+    local: Option<EcStepper<&'a S>>,
     r: usize,
     settings: SolverSettings,
     /// The banks' arithmetic of the steps to values between grid points.
@@ -248,6 +257,7 @@ impl<'a, S: System> PairRuns<'a, S> {
             answer,
             check,
             between: None,
+            local: None,
             r,
             settings,
             between_banks,
@@ -331,6 +341,28 @@ impl<S: System> Runs for PairRuns<'_, S> {
         if let Some(c) = &mut self.check {
             c.set_step_size(h)?;
         }
+        if let Some(c) = &mut self.local {
+            c.set_step_size(h)?;
+        }
+        Ok(())
+    }
+
+    fn step_local(&mut self, from: &[f64], out: &mut [f64], cost: &mut Cost) -> Result<()> {
+        let h = self.answer.step_size();
+        if self.local.is_none() {
+            self.local = Some(EcStepper::from_kernel_cached(
+                check_kernel(self.r)?,
+                self.system,
+                h,
+                self.settings,
+                Some(Arc::clone(&self.cache)),
+            )?);
+        }
+        let local = self.local.as_mut().expect("built above");
+        local.set_step_size(h)?;
+        out.copy_from_slice(from);
+        let rep = local.step(out)?;
+        check_cost(cost, &rep);
         Ok(())
     }
 

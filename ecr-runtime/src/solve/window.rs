@@ -113,6 +113,25 @@ impl<'o> Ctx<'o> {
         estimate(tolerance, self.unit, answer, check, n)
     }
 
+    /// What one step of size `h` makes: the difference of the answer's step `answer` and the
+    /// check's `check` from the same state, per component less a few roundings of it (below
+    /// that, what a step makes cannot be told from how its stages were rounded: the
+    /// component's own, and h times the largest component's, which the increment mixes in),
+    /// in units of the tolerance; the largest over the components whose tolerance is not 0.
+    pub(super) fn made(&self, answer: &[f64], check: &[f64], h: f64) -> f64 {
+        let (rtol, atol) = (self.options.rtol, self.options.atol);
+        let mixed = h.min(1.0) * answer.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+        answer
+            .iter()
+            .zip(check)
+            .map(|(a, c)| {
+                let w = atol + rtol * a.abs();
+                let e = (a - c).abs() - MADE_ROUNDING * self.unit * (a.abs().max(c.abs()) + mixed);
+                if w > 0.0 && e > 0.0 { e / w } else { 0.0 }
+            })
+            .fold(0.0, |m, x| if x > m || x.is_nan() { x } else { m })
+    }
+
     /// The modelled round-off of the answer `y` after `n` steps, in units of the tolerance.
     pub(super) fn noise(&self, y: &[f64], n: usize) -> f64 {
         estimate((self.options.rtol, self.options.atol), self.unit, y, y, n)
@@ -170,11 +189,51 @@ impl<'o> Ctx<'o> {
     }
 }
 
+/// What a step makes ([`Ctx::made`]) counts above this many roundings of each component.
+const MADE_ROUNDING: f64 = 4.0;
+
+/// What the answer's step from `before` to `after` made alone: against the check's step from
+/// `before` ([`Runs::step_local`], [`Ctx::made`]).
+///
+/// # Errors
+/// What the check's stepper reports.
+pub(super) fn made_step(
+    ctx: &Ctx<'_>,
+    runs: &mut dyn Runs,
+    before: &[f64],
+    after: &[f64],
+    cost: &mut Cost,
+) -> Result<f64> {
+    let mut yl = vec![0.0; before.len()];
+    runs.step_local(before, &mut yl, cost)?;
+    Ok(ctx.made(after, &yl, runs.step_size()))
+}
+
+/// Fills the entries of `made` (one per step of `points`, which start at `from`) that
+/// [`advance`] did not measure. A step whose measure fails counts as making infinitely much.
+pub(super) fn made_all(
+    ctx: &Ctx<'_>,
+    runs: &mut dyn Runs,
+    from: &[f64],
+    points: &[GridPoint],
+    made: &mut [f64],
+    cost: &mut Cost,
+) {
+    for (j, m) in made.iter_mut().enumerate() {
+        if m.is_nan() {
+            let before = if j == 0 { from } else { &points[j - 1].answer };
+            *m = made_step(ctx, runs, before, &points[j].answer, cost).unwrap_or(f64::INFINITY);
+        }
+    }
+}
+
 /// `steps` steps of size h (set on the runs by the caller) from `from`: the grid points with
 /// their estimates. Their times are a + (k + j)·h for the j-th step with `(a, k) = origin`
 /// (where the steps of this size began, and how many were taken since: times are computed, not
 /// summed), the last one `end` if given (a step that lands on a stop, its size within the
-/// rounding of h).
+/// rounding of h). With `made`, also what the window's first and last steps make alone
+/// ([`made_step`]), in units of the tolerance; `made` then holds an entry per step, NaN where
+/// not measured ([`made_all`] fills them).
 pub(super) fn advance(
     ctx: &Ctx<'_>,
     runs: &mut dyn Runs,
@@ -182,11 +241,15 @@ pub(super) fn advance(
     (a, k): (f64, usize),
     steps: usize,
     end: Option<f64>,
+    mut made: Option<&mut Vec<f64>>,
     cost: &mut Cost,
 ) -> std::result::Result<Vec<GridPoint>, StepFailure> {
     let h = runs.step_size();
     let (mut ya, mut yc) = (from.answer.clone(), from.check.clone());
     let mut points = Vec::with_capacity(steps);
+    if let Some(m) = made.as_deref_mut() {
+        m.clear();
+    }
     let time = |j: usize| ((k + j) as f64).mul_add(h, a);
     for j in 1..=steps {
         let t = match end {
@@ -194,12 +257,26 @@ pub(super) fn advance(
             _ => time(j),
         };
         let t_before = if j == 1 { from.t } else { time(j - 1) };
+        let before = made
+            .as_ref()
+            .filter(|_| j == 1 || j == steps)
+            .map(|_| ya.clone());
         runs.step(&mut ya, &mut yc, cost)
             .map_err(|error| StepFailure {
                 t: t_before,
                 h,
                 error,
             })?;
+        if let Some(m) = made.as_deref_mut() {
+            m.push(match &before {
+                Some(y) => made_step(ctx, runs, y, &ya, cost).map_err(|error| StepFailure {
+                    t: t_before,
+                    h,
+                    error,
+                })?,
+                None => f64::NAN,
+            });
+        }
         let est = ctx.estimate(&ya, &yc, from.n + j);
         if est.is_nan() {
             return Err(StepFailure {
