@@ -2,7 +2,7 @@
 //! the first step size, the runs ([`run`]), and a run started again — aiming lower, with a
 //! smaller step — when the estimate cannot be kept within the tolerance otherwise.
 
-use super::control::{Attempt, Local, run};
+use super::control::{Attempt, Local, Mode, run};
 use super::pilot::pilot;
 use super::record::{Observer, Point, Record};
 use super::runs::{Make, Runs};
@@ -95,7 +95,8 @@ fn attempts(
             )
         });
         let mut runs = make(r, true, h)?;
-        match run(ctx, &mut *runs, r, h, false, local, observer, &mut stats)? {
+        let mode = local.map_or(Mode::Verify, Mode::Local);
+        match run(ctx, &mut *runs, r, h, mode, observer, &mut stats)? {
             Attempt::Done(record) => {
                 let worst = record.worst();
                 let unverified = (worst.is_nan() || worst > LIMIT).then(|| {
@@ -151,7 +152,15 @@ fn attempts(
                         record
                     } else {
                         let mut runs = make(r, true, h)?;
-                        match run(ctx, &mut *runs, r, h, true, None, observer, &mut stats)? {
+                        match run(
+                            ctx,
+                            &mut *runs,
+                            r,
+                            h,
+                            Mode::Permissive,
+                            observer,
+                            &mut stats,
+                        )? {
                             Attempt::Done(record)
                             | Attempt::Again { record, .. }
                             | Attempt::Failed { record, .. } => record,

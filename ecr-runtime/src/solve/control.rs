@@ -63,6 +63,19 @@ pub(super) enum Attempt {
     Failed { record: Record, reason: String },
 }
 
+/// How a run decides.
+#[derive(Clone, Copy, Debug)]
+pub(super) enum Mode {
+    /// Windows kept or integrated again by the estimate; the run starts again where smaller
+    /// steps do not help.
+    Verify,
+    /// As `Verify`, and each step is also measured for what it makes alone ([`Local`]).
+    Local(Local),
+    /// Every window kept, whatever its estimate: the best run over the whole span at this
+    /// step, for an answer that is not verified.
+    Permissive,
+}
+
 /// A run in the local mode (after a run started again): each step is measured against the
 /// check's step from the answer's state before it ([`Runs::step_local`]), what it makes alone,
 /// and the step size keeps that within `rate` per unit step (in units of the tolerance), never
@@ -102,8 +115,8 @@ fn project(history: &[(f64, f64)], t: f64, worst: f64, ctx: &Ctx<'_>) -> f64 {
     linear.max(exponential).min(1e12)
 }
 
-/// One run from t₀ at order 2r with the check, in windows of steps; with `local`, in the
-/// local mode ([`Local`], docs/solve.md §3).
+/// One run from t₀ at order 2r with the check, in windows of steps, deciding as `mode` says
+/// (the local mode: docs/solve.md §3).
 ///
 /// The step is the run's level `base`, constant unless the estimate says otherwise: the level
 /// makes the estimate, growing as it grew since the level last changed (from t₀: linearly from
@@ -120,12 +133,16 @@ pub(super) fn run(
     runs: &mut dyn Runs,
     r: usize,
     h0: f64,
-    permissive: bool,
-    local: Option<Local>,
+    mode: Mode,
     observer: &mut Observer<'_>,
     stats: &mut Stats,
 ) -> Result<Attempt> {
     let options = ctx.options;
+    let permissive = matches!(mode, Mode::Permissive);
+    let local = match mode {
+        Mode::Local(l) => Some(l),
+        Mode::Verify | Mode::Permissive => None,
+    };
     let p = check_order(r);
     let span = ctx.t_end - ctx.t0;
     let max_step = options
@@ -234,8 +251,7 @@ pub(super) fn run(
             runs,
             &state,
             origin,
-            steps,
-            end,
+            (steps, end),
             made.as_mut(),
             &mut cost,
         ) {
@@ -371,17 +387,15 @@ pub(super) fn run(
         // A window cut in the local mode keeps its steps before the cut, as one shortened at a
         // feature does.
         let mut shrunk = cut && !over;
-        {
-            let rate_now = growth / duration;
-            let implausible = rejected.is_some_and(|(g, hr)| {
-                hw < hr && rate_now < g * (hw / hr).powf(p + 2.0) && !doubted
-            });
-            if implausible && retries < MAX_WINDOW_TRIES && !permissive && !cut {
-                stats.discard(&cost);
-                stats.retries += 1;
-                retries += 1;
-                doubted = true;
-                options.say(|| {
+        let rate_now = growth / duration;
+        let implausible = rejected
+            .is_some_and(|(g, hr)| hw < hr && rate_now < g * (hw / hr).powf(p + 2.0) && !doubted);
+        if implausible && retries < MAX_WINDOW_TRIES && !permissive && !cut {
+            stats.discard(&cost);
+            stats.retries += 1;
+            retries += 1;
+            doubted = true;
+            options.say(|| {
                 format!(
                     "window at t = {:?}, h = {hw:.4e}: estimate fell from {:.3e} to {rate_now:.3e} per \
                      unit time, more than the order explains → again with h × 0.7",
@@ -389,111 +403,110 @@ pub(super) fn run(
                     rejected.map_or(0.0, |r| r.0)
                 )
             });
-                h = on_ladder(hw * 0.7, ladder);
-                continue;
-            }
-            // A feature inside one step of the window — a jump or a kink of g at a time nobody
-            // announced, a close passage — adds its error in that step: the step that carries most
-            // of the window's growth. Its step is made smaller while that brings what the step adds
-            // down (compared as it is, not per unit time: the error of a jump is made once, in
-            // proportion to the step over it), the steps before it are kept, and the steps grow
-            // back after it.
-            if (over || growth > 0.5 * room) && !permissive && !shrunk {
-                let local = local_step(&points, state.worst)
-                    .filter(|_| retries < MAX_WINDOW_TRIES && hw > resolution(state.t) * 16.0);
-                if let Some((j, delta)) = local {
-                    let helped = feature.is_none_or(|f: Feature| delta < 0.7 * f.delta);
-                    if helped {
-                        // The order of what the step adds, seen from the last two tries at this
-                        // feature (a jump of g: 1; a kink: 2; a smooth passage: the check's), or
-                        // 2 at the first try.
-                        let (q, least) = match feature {
-                            Some(f) if hw < f.h && delta < f.delta => (
-                                ((f.delta / delta).ln() / (f.h / hw).ln()).clamp(1.0, P_BOLD),
-                                1.0 / 64.0,
-                            ),
-                            _ => (2.0, 0.125),
-                        };
-                        let factor = (0.25 * room / delta).powf(1.0 / q).clamp(least, 0.5);
-                        feature = Some(Feature {
-                            delta,
-                            h: hw,
-                            until: points[j].t,
-                        });
-                        stats.retries += 1;
-                        retries += 1;
-                        h = on_ladder(hw * factor, ladder);
-                        let before = points[..j]
-                            .iter()
-                            .map(|q| q.est)
-                            .fold(state.worst, f64::max);
-                        let t_feature = points[j].t;
-                        options.say(|| {
+            h = on_ladder(hw * 0.7, ladder);
+            continue;
+        }
+        // A feature inside one step of the window — a jump or a kink of g at a time nobody
+        // announced, a close passage — adds its error in that step: the step that carries most
+        // of the window's growth. Its step is made smaller while that brings what the step adds
+        // down (compared as it is, not per unit time: the error of a jump is made once, in
+        // proportion to the step over it), the steps before it are kept, and the steps grow
+        // back after it.
+        if (over || growth > 0.5 * room) && !permissive && !shrunk {
+            let local = local_step(&points, state.worst)
+                .filter(|_| retries < MAX_WINDOW_TRIES && hw > resolution(state.t) * 16.0);
+            if let Some((j, delta)) = local {
+                let helped = feature.is_none_or(|f: Feature| delta < 0.7 * f.delta);
+                if helped {
+                    // The order of what the step adds, seen from the last two tries at this
+                    // feature (a jump of g: 1; a kink: 2; a smooth passage: the check's), or
+                    // 2 at the first try.
+                    let (q, least) = match feature {
+                        Some(f) if hw < f.h && delta < f.delta => (
+                            ((f.delta / delta).ln() / (f.h / hw).ln()).clamp(1.0, P_BOLD),
+                            1.0 / 64.0,
+                        ),
+                        _ => (2.0, 0.125),
+                    };
+                    let factor = (0.25 * room / delta).powf(1.0 / q).clamp(least, 0.5);
+                    feature = Some(Feature {
+                        delta,
+                        h: hw,
+                        until: points[j].t,
+                    });
+                    stats.retries += 1;
+                    retries += 1;
+                    h = on_ladder(hw * factor, ladder);
+                    let before = points[..j]
+                        .iter()
+                        .map(|q| q.est)
+                        .fold(state.worst, f64::max);
+                    let t_feature = points[j].t;
+                    options.say(|| {
                         format!(
                             "window at t = {:?}, h = {hw:.4e}: the step to t = {t_feature:?} adds \
-                             {delta:.3e} of the estimate's {growth:.3e} → that step again with \
-                             h × {factor:.3e} (order {q:.2})",
+                         {delta:.3e} of the estimate's {growth:.3e} → that step again with \
+                         h × {factor:.3e} (order {q:.2})",
                             state.t
                         )
                     });
-                        if j > 0 && before <= LIMIT && before - state.worst <= 0.5 * room {
-                            // Keep the steps before the feature.
-                            stats.discard(&cost.take_share(points.len() - j, points.len()));
-                            points.truncate(j);
-                            shrunk = true;
-                        } else {
-                            stats.discard(&cost);
-                            continue;
-                        }
+                    if j > 0 && before <= LIMIT && before - state.worst <= 0.5 * room {
+                        // Keep the steps before the feature.
+                        stats.discard(&cost.take_share(points.len() - j, points.len()));
+                        points.truncate(j);
+                        shrunk = true;
+                    } else {
+                        stats.discard(&cost);
+                        continue;
                     }
                 }
             }
-            let last = points.last().expect("a window has a step");
-            let worst = points.iter().map(|q| q.est).fold(state.worst, f64::max);
-            let growth = worst - state.worst;
-            if (over || growth > 0.5 * room) && !permissive && !shrunk {
-                // A smaller step for this window while that brings its growth down. Compared per
-                // unit time: a smaller step also makes the window shorter, which lowers the growth
-                // of an error carried into it (amplified by the flow) as much as its duration, that
-                // of an error made in it by the order of the check besides.
-                let rate = growth / duration;
-                let helped = rejected.is_none_or(|(g, _)| rate < g * 0.7);
-                if helped && retries < MAX_WINDOW_TRIES && hw > resolution(state.t) * 16.0 {
-                    stats.discard(&cost);
-                    stats.retries += 1;
-                    retries += 1;
-                    rejected = Some((rate, hw));
-                    let want = 0.25 * room;
-                    let factor = if growth > 0.0 && want > 0.0 {
-                        (want / growth).powf(1.0 / p.min(P_BOLD)).clamp(0.125, 0.5)
-                    } else {
-                        0.5
-                    };
-                    options.say(|| {
-                        format!(
-                            "window at t = {:?}, h = {hw:.4e}: estimate {worst:.3e} (growth \
-                         {growth:.3e}) → again with h × {factor:.3}",
-                            state.t
-                        )
-                    });
-                    h = on_ladder(hw * factor, ladder);
-                    continue;
-                }
-                if over {
-                    stats.discard(&cost);
-                    let projected = project(&history, last.t, worst.max(LIMIT), ctx);
-                    return Ok(Attempt::Again {
-                        record,
-                        factor: TARGET / projected,
-                        at: last.t,
-                        noise: ctx.noise(&last.answer, state.n + points.len()),
-                        reason: format!(
-                            "the estimate reaches {worst:.3e} times the tolerance at t = {:?} and a \
-                         smaller step for that stretch does not bring it down",
-                            last.t
-                        ),
-                    });
-                }
+        }
+        let last = points.last().expect("a window has a step");
+        let worst = points.iter().map(|q| q.est).fold(state.worst, f64::max);
+        let growth = worst - state.worst;
+        if (over || growth > 0.5 * room) && !permissive && !shrunk {
+            // A smaller step for this window while that brings its growth down. Compared per
+            // unit time: a smaller step also makes the window shorter, which lowers the growth
+            // of an error carried into it (amplified by the flow) as much as its duration, that
+            // of an error made in it by the order of the check besides.
+            let rate = growth / duration;
+            let helped = rejected.is_none_or(|(g, _)| rate < g * 0.7);
+            if helped && retries < MAX_WINDOW_TRIES && hw > resolution(state.t) * 16.0 {
+                stats.discard(&cost);
+                stats.retries += 1;
+                retries += 1;
+                rejected = Some((rate, hw));
+                let want = 0.25 * room;
+                let factor = if growth > 0.0 && want > 0.0 {
+                    (want / growth).powf(1.0 / p.min(P_BOLD)).clamp(0.125, 0.5)
+                } else {
+                    0.5
+                };
+                options.say(|| {
+                    format!(
+                        "window at t = {:?}, h = {hw:.4e}: estimate {worst:.3e} (growth \
+                     {growth:.3e}) → again with h × {factor:.3}",
+                        state.t
+                    )
+                });
+                h = on_ladder(hw * factor, ladder);
+                continue;
+            }
+            if over {
+                stats.discard(&cost);
+                let projected = project(&history, last.t, worst.max(LIMIT), ctx);
+                return Ok(Attempt::Again {
+                    record,
+                    factor: TARGET / projected,
+                    at: last.t,
+                    noise: ctx.noise(&last.answer, state.n + points.len()),
+                    reason: format!(
+                        "the estimate reaches {worst:.3e} times the tolerance at t = {:?} and a \
+                     smaller step for that stretch does not bring it down",
+                        last.t
+                    ),
+                });
             }
         }
         let last = points.last().expect("a window has a step");

@@ -58,14 +58,13 @@ pub(super) fn fixed(
         };
         runs.set_step_size(size)?;
         let mut cost = Cost::default();
-        let mut points = advance(ctx, runs, &state, origin, steps, end, None, &mut cost).map_err(
-            |StepFailure { t, h, error }| Error::AtStep {
+        let mut points = advance(ctx, runs, &state, origin, (steps, end), None, &mut cost)
+            .map_err(|StepFailure { t, h, error }| Error::AtStep {
                 step: done + 1,
                 t,
                 h,
                 source: Box::new(error),
-            },
-        )?;
+            })?;
         if let (Some(l), true) = (rounding, done >= plan.full_steps) {
             let last = points.last_mut().expect("one step");
             runs.drift(&mut last.answer, l - h)?;

@@ -70,8 +70,7 @@ pub(super) fn pilot(
                 &mut *runs,
                 &ctx.start(),
                 (ctx.t0, 0),
-                steps,
-                None,
+                (steps, None),
                 None,
                 &mut cost,
             );

@@ -227,11 +227,11 @@ pub(super) fn made_all(
     }
 }
 
-/// `steps` steps of size h (set on the runs by the caller) from `from`: the grid points with
-/// their estimates. Their times are a + (k + j)·h for the j-th step with `(a, k) = origin`
-/// (where the steps of this size began, and how many were taken since: times are computed, not
-/// summed), the last one `end` if given (a step that lands on a stop, its size within the
-/// rounding of h). With `made`, also what the window's first and last steps make alone
+/// `(steps, end)`: `steps` steps of size h (set on the runs by the caller) from `from`, the
+/// grid points with their estimates. Their times are a + (k + j)·h for the j-th step with
+/// `(a, k) = origin` (where the steps of this size began, and how many were taken since: times
+/// are computed, not summed), the last one `end` if given (a step that lands on a stop, its
+/// size within the rounding of h). With `made`, also what the window's first and last steps make alone
 /// ([`made_step`]), in units of the tolerance; `made` then holds an entry per step, NaN where
 /// not measured ([`made_all`] fills them).
 pub(super) fn advance(
@@ -239,8 +239,7 @@ pub(super) fn advance(
     runs: &mut dyn Runs,
     from: &State,
     (a, k): (f64, usize),
-    steps: usize,
-    end: Option<f64>,
+    (steps, end): (usize, Option<f64>),
     mut made: Option<&mut Vec<f64>>,
     cost: &mut Cost,
 ) -> std::result::Result<Vec<GridPoint>, StepFailure> {
