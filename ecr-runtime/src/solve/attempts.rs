@@ -2,7 +2,8 @@
 //! the first step size, the runs ([`run`]), and a run started again — aiming lower, with a
 //! smaller step — when the estimate cannot be kept within the tolerance otherwise.
 
-use super::control::{Attempt, Local, Mode, run};
+use super::control::{Attempt, Mode, run};
+use super::local::Local;
 use super::pilot::pilot;
 use super::record::{Observer, Point, Record};
 use super::runs::{Make, Runs};

@@ -4,12 +4,13 @@
 //! runs through [`Runs`] only, so it is compiled once, not once per system.
 
 use super::features::{Feature, Recent, local_step};
+use super::local::{Local, LocalRun, Verdict};
 use super::record::{Observer, Record, cost_since};
 use super::runs::{Cost, Runs};
 use super::solution::{Stats, Status};
 use super::window::{
     Ctx, GridPoint, LIMIT, P_BOLD, State, StepFailure, TARGET, Trail, advance, check_order, keep,
-    made_all, resolution, start_outputs,
+    resolution, start_outputs,
 };
 use crate::error::{Error, Result};
 
@@ -22,12 +23,6 @@ const STUCK_LIMIT: usize = 8;
 /// A window is integrated again at most this often (while a smaller step brings its estimate
 /// down) before the run starts again.
 const MAX_WINDOW_TRIES: usize = 24;
-
-/// What a step makes alone, in units of the tolerance, that the local mode never cuts a step
-/// for: 10⁸ such steps would make the tolerance. Below it, what a step makes may not shrink
-/// with the step at all (the rounding of a component near zero), and cutting for it would
-/// not end.
-const MADE_NEGLIGIBLE: f64 = 1e-8;
 
 /// The estimate's rate of growth is read off the windows of the last 1/RECENT of the span.
 const RECENT: f64 = 16.0;
@@ -74,16 +69,6 @@ pub(super) enum Mode {
     /// Every window kept, whatever its estimate: the best run over the whole span at this
     /// step, for an answer that is not verified.
     Permissive,
-}
-
-/// A run in the local mode (after a run started again): each step is measured against the
-/// check's step from the answer's state before it ([`Runs::step_local`]), what it makes alone,
-/// and the step size keeps that within `rate` per unit step (in units of the tolerance), never
-/// above `cap`.
-#[derive(Clone, Copy, Debug)]
-pub(super) struct Local {
-    pub(super) rate: f64,
-    pub(super) cap: f64,
 }
 
 /// The step of the ladder at or below h.
@@ -190,19 +175,8 @@ pub(super) fn run(
     // The estimate after each kept window, (t, worst), for the projection of a run that
     // starts again.
     let mut history: Vec<(f64, f64)> = Vec::new();
-    // In the local mode, what each step of the window made ([`advance`]) and the largest per
-    // unit step.
-    let mut made = local.map(|_| Vec::new());
-    let (mut made_rate, mut trend) = (0.0_f64, 1.0_f64);
-    // The local mode's last step made smaller (its size, what the step made and where the
-    // next window starts), to see whether that helped; and what a step makes that smaller
-    // steps did not bring down (in units of the tolerance), counted as nothing from then on.
-    let mut probe: Option<(f64, f64, f64)> = None;
-    let mut made_floor = MADE_NEGLIGIBLE;
-    // The local mode's last cut (what the step made per unit step, its size, where it
-    // started), and whether the window is taken without the limit.
-    let mut last_cut: Option<(f64, f64, f64)> = None;
-    let mut relax = false;
+    // The local mode's measures, from window to window.
+    let mut local = local.map(LocalRun::new);
     while state.t < ctx.t_end - ctx.same_time && !record.ended() {
         let stop = ctx.next_stop(state.t);
         let room = stop - state.t;
@@ -252,7 +226,7 @@ pub(super) fn run(
             &state,
             origin,
             (steps, end),
-            made.as_mut(),
+            local.as_mut().map(|l| &mut l.made),
             &mut cost,
         ) {
             Ok(points) => points,
@@ -278,97 +252,26 @@ pub(super) fn run(
         // The local mode: a step that made more than the limit is taken again with a smaller
         // step, and the steps before it are kept.
         let mut cut = false;
-        if let (Some(Local { rate: rho, .. }), Some(m)) = (local, made.as_mut()) {
-            // A smaller step that made about as much as the larger one just before it or in its
-            // place (less than the square of their ratio would take off; a smooth error falls
-            // by the power p + 1): what a step makes here is rounding, not the method's error,
-            // and steps are not made smaller for it again.
-            let first = m.first().copied().unwrap_or(0.0);
-            if let Some((hp, mp, tp)) = probe.take() {
-                if state.t == tp && hw < hp && first >= made_floor && first > mp * (hw / hp).powi(2)
-                {
-                    made_floor = made_floor.max(2.0 * first);
-                    options.say(|| {
-                        format!(
-                            "t = {:?}: h = {hw:.4e} made {first:.3e} where h = {hp:.4e} made \
-                             {mp:.3e} → from now on a step may make {:.3e}",
-                            state.t, made_floor
-                        )
-                    });
-                }
-            }
-            // A step may make up to twice the target, and never needs to make less than the
-            // floor. The first and last steps are measured; where one makes more, every step
-            // is, and the window is cut before the first that does.
-            let floor = made_floor;
-            let limit = if permissive || relax {
-                f64::INFINITY
-            } else {
-                (2.0 * rho * hw).max(floor)
-            };
-            // What the measured steps made, each counted as 0 below the floor.
-            let measured = |m: &[f64]| {
-                m.iter()
-                    .filter(|&&x| x >= floor)
-                    .fold(0.0_f64, |a, &b| a.max(b))
-            };
-            let j_cut = if measured(m) > limit {
-                made_all(ctx, runs, &state.answer, &points, m, &mut cost);
-                m.iter().position(|&x| x > limit)
-            } else {
-                None
-            };
-            made_rate = measured(m) / hw;
-            // Where what the steps make grew across the window (an approach), the next window
-            // makes more again: the trend, first step to last, carried forward.
-            trend = match (m.first(), m.last()) {
-                (Some(&a), Some(&b)) if a >= floor && b > a => (b / a).min(1e6),
-                _ => 1.0,
-            };
-            if let Some(j) = j_cut {
-                let rate = m[j] / hw;
-                let t_start = if j == 0 { state.t } else { points[j - 1].t };
-                // Compared with the last cut where this is the same step made smaller: the
-                // first of a window that starts where that step started.
-                let helped = last_cut
-                    .is_none_or(|(g, hc, tc)| j > 0 || state.t != tc || hw >= hc || rate < 0.7 * g);
-                if helped && retries < MAX_WINDOW_TRIES && hw > resolution(state.t) * 16.0 {
+        if let Some(l) = local.as_mut() {
+            let may_retry = retries < MAX_WINDOW_TRIES && hw > resolution(state.t) * 16.0;
+            let from = (state.t, &state.answer[..]);
+            match l.judge(ctx, runs, from, &points, hw, p, may_retry, &mut cost) {
+                Verdict::Keep => {}
+                Verdict::Cut { keep, factor } => {
                     stats.retries += 1;
                     retries += 1;
-                    last_cut = Some((rate, hw, t_start));
-                    probe = Some((hw, m[j], t_start));
-                    let factor = (0.5 * rho / rate)
-                        .powf(1.0 / p.min(P_BOLD))
-                        .clamp(0.125, 0.5);
-                    options.say(|| {
-                        format!(
-                            "window at t = {:?}, h = {hw:.4e}: the step from t = {t_start:?} \
-                             makes {rate:.3e} per unit step (target {rho:.3e}) → from there \
-                             with h × {factor:.3}",
-                            state.t
-                        )
-                    });
                     h = on_ladder(hw * factor, ladder);
-                    if j == 0 {
+                    if keep == 0 {
                         stats.discard(&cost);
                         continue;
                     }
                     let whole = points.len();
-                    stats.discard(&cost.take_share(whole - j, whole));
-                    points.truncate(j);
+                    stats.discard(&cost.take_share(whole - keep, whole));
+                    points.truncate(keep);
                     cut = true;
-                } else {
-                    // A smaller step does not make less per unit step (a jump of g makes an
-                    // error in proportion to the step over it): taken as it is.
+                }
+                Verdict::AsItIs => {
                     stats.discard(&cost);
-                    relax = true;
-                    options.say(|| {
-                        format!(
-                            "window at t = {:?}, h = {hw:.4e}: a smaller step made as much per \
-                             unit step → taken as it is",
-                            state.t
-                        )
-                    });
                     continue;
                 }
             }
@@ -676,29 +579,14 @@ pub(super) fn run(
             };
             h = on_ladder(base.min(max_step).min(up * hw), ladder);
         }
-        if let Some(Local { rate: rho, .. }) = local {
-            if !cut {
-                (last_cut, relax) = (None, false);
-                // Error per unit step: down to half the target where a step made more than it,
-                // up (by up to 2) only where that grows the step by a fourth at least; constant
-                // in between (segments of one step size). The step is the smaller of this and
-                // the one the estimate calls for.
-                let ahead = made_rate * trend;
-                let aim = (0.5 * rho / ahead.max(f64::MIN_POSITIVE)).powf(1.0 / p);
-                let factor = if ahead > rho {
-                    aim.max(0.5)
-                } else if aim >= 1.25 {
-                    aim.min(2.0)
-                } else {
-                    1.0
-                };
-                let mine = on_ladder((hw * factor).min(max_step), ladder);
-                if mine < h {
-                    let last = made.as_deref().and_then(|m| m.last()).copied();
-                    probe = last.filter(|x| !x.is_nan()).map(|x| (hw, x, state.t));
-                }
-                h = h.min(mine);
+        if let Some(l) = local.as_mut().filter(|_| !cut) {
+            // The step is the smaller of what error per unit step calls for and what the
+            // estimate does.
+            let mine = on_ladder((hw * l.factor(p)).min(max_step), ladder);
+            if mine < h {
+                l.shrunk(hw, state.t);
             }
+            h = h.min(mine);
         }
         options.say(|| {
             format!(

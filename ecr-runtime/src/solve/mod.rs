@@ -74,6 +74,7 @@ mod events;
 mod features;
 mod fixed;
 mod interp;
+mod local;
 mod options;
 mod pilot;
 mod record;

@@ -1,0 +1,196 @@
+//! The local mode of a run started again (docs/solve.md §3): each step is also measured for
+//! what it makes alone — the check's step from the answer's state before it, against the
+//! answer's step ([`made_step`](super::window::made_step)) — and the steps are cut and sized by
+//! error per unit step, so that they shrink on the way into a close passage, where the error
+//! made shows only later, magnified.
+
+use super::runs::{Cost, Runs};
+use super::window::{Ctx, GridPoint, P_BOLD, made_all};
+
+/// What a step makes alone, in units of the tolerance, that the local mode never cuts a step
+/// for: 10⁸ such steps would make the tolerance. Below it, what a step makes may not shrink
+/// with the step at all (the rounding of a component near zero), and cutting for it would
+/// not end.
+const MADE_NEGLIGIBLE: f64 = 1e-8;
+
+/// The local mode's target: what a step may make per unit step (`rate`, in units of the
+/// tolerance), and the largest step (`cap`: the step the run started again with).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Local {
+    pub(super) rate: f64,
+    pub(super) cap: f64,
+}
+
+/// What the window measured calls for.
+pub(super) enum Verdict {
+    /// Keep it whole.
+    Keep,
+    /// Keep its first `keep` steps (none: the whole window again) and take the rest again
+    /// with the step times `factor`.
+    Cut { keep: usize, factor: f64 },
+    /// The whole window again at the same step, taken as it is (a smaller step made as much
+    /// per unit step).
+    AsItIs,
+}
+
+/// The local mode over one run: what the steps of the window made, and what it keeps from
+/// window to window.
+pub(super) struct LocalRun {
+    target: Local,
+    /// What each step of the window made, NaN where not measured
+    /// ([`advance`](super::window::advance) fills it).
+    pub(super) made: Vec<f64>,
+    /// The largest per unit step over the window's measured steps, and how much it grew
+    /// across the window.
+    rate: f64,
+    trend: f64,
+    /// The last step made smaller (its size, what it made, where the next window starts), to
+    /// see whether that helped.
+    probe: Option<(f64, f64, f64)>,
+    /// What a step makes that smaller steps did not bring down: counted as nothing.
+    floor: f64,
+    /// The last cut (what the step made per unit step, its size, where it started).
+    last_cut: Option<(f64, f64, f64)>,
+    /// The window is taken without the limit.
+    relax: bool,
+}
+
+impl LocalRun {
+    pub(super) fn new(target: Local) -> Self {
+        LocalRun {
+            target,
+            made: Vec::new(),
+            rate: 0.0,
+            trend: 1.0,
+            probe: None,
+            floor: MADE_NEGLIGIBLE,
+            last_cut: None,
+            relax: false,
+        }
+    }
+
+    /// The verdict on a window of step `hw` from `(t, answer)` whose steps are `points`
+    /// (check's order p); `may_retry` whether the controller may take it again at all. Every
+    /// step is measured (into `cost`) where the first or last makes more than the limit.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn judge(
+        &mut self,
+        ctx: &Ctx<'_>,
+        runs: &mut dyn Runs,
+        (t, answer): (f64, &[f64]),
+        points: &[GridPoint],
+        hw: f64,
+        p: f64,
+        may_retry: bool,
+        cost: &mut Cost,
+    ) -> Verdict {
+        let options = ctx.options;
+        let rho = self.target.rate;
+        // A smaller step that made about as much as the larger one just before it or in its
+        // place (less than the square of their ratio would take off; a smooth error falls by
+        // the power p + 1): what a step makes here is rounding, not the method's error, and
+        // steps are not made smaller for it again.
+        let first = self.made.first().copied().unwrap_or(0.0);
+        if let Some((hp, mp, tp)) = self.probe.take() {
+            if t == tp && hw < hp && first >= self.floor && first > mp * (hw / hp).powi(2) {
+                self.floor = self.floor.max(2.0 * first);
+                options.say(|| {
+                    format!(
+                        "t = {t:?}: h = {hw:.4e} made {first:.3e} where h = {hp:.4e} made \
+                         {mp:.3e} → from now on a step may make {:.3e}",
+                        self.floor
+                    )
+                });
+            }
+        }
+        // A step may make up to twice the target, and never needs to make less than the
+        // floor. The first and last steps are measured; where one makes more, every step is,
+        // and the window is cut before the first that does.
+        let floor = self.floor;
+        let limit = if self.relax {
+            f64::INFINITY
+        } else {
+            (2.0 * rho * hw).max(floor)
+        };
+        // What the measured steps made, each counted as 0 below the floor.
+        let measured = |m: &[f64]| {
+            m.iter()
+                .filter(|&&x| x >= floor)
+                .fold(0.0_f64, |a, &b| a.max(b))
+        };
+        let m = &mut self.made;
+        let j_cut = if measured(m) > limit {
+            made_all(ctx, runs, answer, points, m, cost);
+            m.iter().position(|&x| x > limit)
+        } else {
+            None
+        };
+        self.rate = measured(m) / hw;
+        // Where what the steps make grew across the window (an approach), the next window
+        // makes more again: the trend, first step to last, carried forward.
+        self.trend = match (m.first(), m.last()) {
+            (Some(&a), Some(&b)) if a >= floor && b > a => (b / a).min(1e6),
+            _ => 1.0,
+        };
+        let Some(j) = j_cut else {
+            return Verdict::Keep;
+        };
+        let rate = m[j] / hw;
+        let t_start = if j == 0 { t } else { points[j - 1].t };
+        // Compared with the last cut where this is the same step made smaller: the first of a
+        // window that starts where that step started.
+        let helped = self
+            .last_cut
+            .is_none_or(|(g, hc, tc)| j > 0 || t != tc || hw >= hc || rate < 0.7 * g);
+        if helped && may_retry {
+            self.last_cut = Some((rate, hw, t_start));
+            self.probe = Some((hw, m[j], t_start));
+            let factor = (0.5 * rho / rate)
+                .powf(1.0 / p.min(P_BOLD))
+                .clamp(0.125, 0.5);
+            options.say(|| {
+                format!(
+                    "window at t = {t:?}, h = {hw:.4e}: the step from t = {t_start:?} makes \
+                     {rate:.3e} per unit step (target {rho:.3e}) → from there with h × \
+                     {factor:.3}"
+                )
+            });
+            Verdict::Cut { keep: j, factor }
+        } else {
+            // A smaller step does not make less per unit step (a jump of g makes an error in
+            // proportion to the step over it): taken as it is.
+            self.relax = true;
+            options.say(|| {
+                format!(
+                    "window at t = {t:?}, h = {hw:.4e}: a smaller step made as much per unit \
+                     step → taken as it is"
+                )
+            });
+            Verdict::AsItIs
+        }
+    }
+
+    /// After a window kept whole: the factor on its step that error per unit step calls for — down to aim at half the target where a step made more than it
+    /// (the window's trend carried forward), up by up to 2 only where that grows the step by a
+    /// fourth at least, 1 in between (segments of one step size).
+    pub(super) fn factor(&mut self, p: f64) -> f64 {
+        (self.last_cut, self.relax) = (None, false);
+        let rho = self.target.rate;
+        let ahead = self.rate * self.trend;
+        let aim = (0.5 * rho / ahead.max(f64::MIN_POSITIVE)).powf(1.0 / p);
+        if ahead > rho {
+            aim.max(0.5)
+        } else if aim >= 1.25 {
+            aim.min(2.0)
+        } else {
+            1.0
+        }
+    }
+
+    /// The step was made smaller than `hw` after the window that ended at `t`: the next window
+    /// tells whether that helped.
+    pub(super) fn shrunk(&mut self, hw: f64, t: f64) {
+        let last = self.made.last().copied();
+        self.probe = last.filter(|x| !x.is_nan()).map(|x| (hw, x, t));
+    }
+}
