@@ -8,7 +8,7 @@ use super::pilot::pilot;
 use super::record::{Observer, Point, Record};
 use super::runs::{Make, Runs};
 use super::solution::Stats;
-use super::window::{Ctx, LIMIT, TARGET};
+use super::window::{Ctx, LIMIT, TARGET, check_order};
 use crate::error::Result;
 
 /// Runs started again from t₀ before the solve gives up.
@@ -24,7 +24,8 @@ const RESTART_MIN: f64 = 0.5;
 /// The first local mode's target per unit time, as a share of TARGET / span. A target too
 /// loose costs a run started again (a whole run), one too tight only the steps it adds (the
 /// steps grow like target^(−1/p)): on Kepler e = 0.9 and the suite, 0.02 took fewer
-/// evaluations of g than 0.1 and 0.005 (docs/solve.md §3).
+/// evaluations of g than 0.1 and 0.005 (measured before the target from the failed run,
+/// which is taken where it is looser; docs/solve.md §3).
 const LOCAL_FIRST: f64 = 0.02;
 
 /// The step of a run started again after one whose estimate projects to `TARGET / factor`:
@@ -118,6 +119,7 @@ fn attempts(
                 factor,
                 at,
                 noise,
+                growth,
                 reason,
             } => {
                 options.say(|| format!("start again: {reason}"));
@@ -183,10 +185,16 @@ fn attempts(
                 // The error made so far was too large: smaller steps from t₀, at least 30 %
                 // smaller (far from the asymptotic regime, where the cheapest runs are, the
                 // estimate falls more slowly than h^p).
+                let h_before = h;
                 h = h_next(h, factor);
                 local = Some(Local {
                     rate: match local {
-                        None => LOCAL_FIRST * TARGET / span,
+                        // No tighter than what the run that failed made per unit time, scaled
+                        // to the new step by the check's order: where that run erred evenly
+                        // (Duffing over 1000 time units), its steps made smaller evenly would
+                        // do, and a target from the span alone cut every window.
+                        None => (LOCAL_FIRST * TARGET / span)
+                            .max(growth * (h / h_before).powf(check_order(r))),
                         Some(l) => l.rate * (0.8 * factor).clamp(0.05, 0.7),
                     },
                     cap: h,

@@ -52,6 +52,8 @@ pub(super) enum Attempt {
         at: f64,
         /// The modelled round-off there, in units of the tolerance.
         noise: f64,
+        /// How fast the estimate grew so far: its largest value per unit time since t₀.
+        growth: f64,
         reason: String,
     },
     /// Stuck or out of steps: the best solution so far and why.
@@ -404,6 +406,7 @@ pub(super) fn run(
                     factor: TARGET / projected,
                     at: last.t,
                     noise: ctx.noise(&last.answer, state.n + points.len()),
+                    growth: worst.max(LIMIT) / (last.t - ctx.t0),
                     reason: format!(
                         "the estimate reaches {worst:.3e} times the tolerance at t = {:?} and a \
                      smaller step for that stretch does not bring it down",
@@ -545,6 +548,7 @@ pub(super) fn run(
                     factor: TARGET / projected,
                     at: ctx.t_end,
                     noise: 0.0,
+                    growth: worst / (state.t - ctx.t0),
                     reason: format!(
                         "the estimate, {worst:.3e} times the tolerance at t = {:?}, projects to \
                          {projected:.3e} at t_end",
@@ -582,7 +586,7 @@ pub(super) fn run(
         if let Some(l) = local.as_mut().filter(|_| !cut) {
             // The step is the smaller of what error per unit step calls for and what the
             // estimate does.
-            let mine = on_ladder((hw * l.factor(p)).min(max_step), ladder);
+            let mine = on_ladder((hw * l.factor(hw, p)).min(max_step), ladder);
             if mine < h {
                 l.shrunk(hw, state.t);
             }

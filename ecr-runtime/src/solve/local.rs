@@ -53,7 +53,15 @@ pub(super) struct LocalRun {
     last_cut: Option<(f64, f64, f64)>,
     /// The window is taken without the limit.
     relax: bool,
+    /// A step size that was cut, and for how many more kept windows the step stays below it
+    /// (where what a smaller step makes is below the floor, nothing else says it would be cut
+    /// again: without this the step went up and was cut every other window, Duffing ω = 20 at
+    /// 1e−4 over 1000 time units).
+    ceiling: Option<(f64, usize)>,
 }
+
+/// Kept windows for which a step size that was cut is not taken again.
+const CEILING_WINDOWS: usize = 4;
 
 impl LocalRun {
     pub(super) fn new(target: Local) -> Self {
@@ -66,6 +74,7 @@ impl LocalRun {
             floor: MADE_NEGLIGIBLE,
             last_cut: None,
             relax: false,
+            ceiling: None,
         }
     }
 
@@ -119,7 +128,9 @@ impl LocalRun {
                 .fold(0.0_f64, |a, &b| a.max(b))
         };
         let m = &mut self.made;
-        let j_cut = if measured(m) > limit {
+        let j_cut = if m.first().is_some_and(|&x| x > limit) {
+            Some(0)
+        } else if measured(m) > limit {
             made_all(ctx, runs, answer, points, m, cost);
             m.iter().position(|&x| x > limit)
         } else {
@@ -144,6 +155,7 @@ impl LocalRun {
             .is_none_or(|(g, hc, tc)| j > 0 || t != tc || hw >= hc || rate < 0.7 * g);
         if helped && may_retry {
             self.last_cut = Some((rate, hw, t_start));
+            self.ceiling = Some((hw, CEILING_WINDOWS));
             self.probe = Some((hw, m[j], t_start));
             let factor = (0.5 * rho / rate)
                 .powf(1.0 / p.min(P_BOLD))
@@ -170,20 +182,29 @@ impl LocalRun {
         }
     }
 
-    /// After a window kept whole: the factor on its step that error per unit step calls for — down to aim at half the target where a step made more than it
+    /// After a window of step `hw` kept whole: the factor on it that error per unit step calls
+    /// for — down to aim at half the target where a step made more than it
     /// (the window's trend carried forward), up by up to 2 only where that grows the step by a
     /// fourth at least, 1 in between (segments of one step size).
-    pub(super) fn factor(&mut self, p: f64) -> f64 {
+    pub(super) fn factor(&mut self, hw: f64, p: f64) -> f64 {
         (self.last_cut, self.relax) = (None, false);
         let rho = self.target.rate;
         let ahead = self.rate * self.trend;
         let aim = (0.5 * rho / ahead.max(f64::MIN_POSITIVE)).powf(1.0 / p);
-        if ahead > rho {
+        let factor = if ahead > rho {
             aim.max(0.5)
         } else if aim >= 1.25 {
             aim.min(2.0)
         } else {
             1.0
+        };
+        match self.ceiling.take() {
+            Some((size, left)) if left > 0 => {
+                self.ceiling = Some((size, left - 1));
+                // Below the size that was cut: a rung of the ladder below it at most.
+                factor.min((0.9 * size / hw).max(1.0))
+            }
+            _ => factor,
         }
     }
 
