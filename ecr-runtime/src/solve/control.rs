@@ -3,13 +3,14 @@
 //! ([`Attempt`]) goes to [`attempts`](super::attempts), which starts runs again. It sees the
 //! runs through [`Runs`] only, so it is compiled once, not once per system.
 
+use super::between::Trail;
 use super::features::{Feature, Recent, local_step};
 use super::local::{Local, LocalRun, Verdict};
 use super::record::{Observer, Record, cost_since};
 use super::runs::{Cost, Runs};
 use super::solution::{Stats, Status};
 use super::window::{
-    Ctx, GridPoint, LIMIT, P_BOLD, State, StepFailure, TARGET, Trail, advance, check_order, keep,
+    Ctx, GridPoint, LIMIT, P_BOLD, State, StepFailure, TARGET, advance, check_order, keep,
     resolution, start_outputs,
 };
 use crate::error::{Error, Result};
@@ -228,7 +229,7 @@ pub(super) fn run(
             &state,
             origin,
             (steps, end),
-            local.as_mut().map(|l| &mut l.made),
+            local.as_mut(),
             &mut cost,
         ) {
             Ok(points) => points,

@@ -1,9 +1,10 @@
 //! Events: the zeros of user functions e(t, y), located on the continuous solution: first on
 //! the grid's interpolant, then, where it does not serve, on the runs' steps ([`hit`]).
 
+use super::between::{INTERP_MAX, Source, Trail, between};
 use super::record::Point;
 use super::runs::{Cost, Runs};
-use super::window::{Ctx, GridPoint, INTERP_MAX, Source, Trail, between};
+use super::window::{Ctx, GridPoint};
 use crate::error::{Error, Result};
 
 /// Which sign changes of an event function count.

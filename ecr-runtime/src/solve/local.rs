@@ -1,17 +1,57 @@
 //! The local mode of a run started again (docs/solve.md §3): each step is also measured for
 //! what it makes alone — the check's step from the answer's state before it, against the
-//! answer's step ([`made_step`](super::window::made_step)) — and the steps are cut and sized by
+//! answer's step ([`Runs::step_local`], [`made`]) — and the steps are cut and sized by
 //! error per unit step, so that they shrink on the way into a close passage, where the error
 //! made shows only later, magnified.
 
 use super::runs::{Cost, Runs};
-use super::window::{Ctx, GridPoint, P_BOLD, made_all};
+use super::window::{Ctx, GridPoint, P_BOLD};
+use crate::error::Result;
 
 /// What a step makes alone, in units of the tolerance, that the local mode never cuts a step
 /// for: 10⁸ such steps would make the tolerance. Below it, what a step makes may not shrink
 /// with the step at all (the rounding of a component near zero), and cutting for it would
 /// not end.
 const MADE_NEGLIGIBLE: f64 = 1e-8;
+
+/// What a step makes ([`made`]) counts above this many roundings of each component.
+const MADE_ROUNDING: f64 = 4.0;
+
+/// What one step of size `h` makes: the difference of the answer's step `answer` and the
+/// check's `check` from the same state, per component less a few roundings of it (below that,
+/// what a step makes cannot be told from how its stages were rounded: the component's own,
+/// and h times the largest component's, which the increment mixes in), in units of the
+/// tolerance; the largest over the components whose tolerance is not 0.
+fn made(ctx: &Ctx<'_>, answer: &[f64], check: &[f64], h: f64) -> f64 {
+    let (rtol, atol) = (ctx.options.rtol, ctx.options.atol);
+    let mixed = h.min(1.0) * answer.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+    answer
+        .iter()
+        .zip(check)
+        .map(|(a, c)| {
+            let w = atol + rtol * a.abs();
+            let e = (a - c).abs() - MADE_ROUNDING * ctx.unit * (a.abs().max(c.abs()) + mixed);
+            if w > 0.0 && e > 0.0 { e / w } else { 0.0 }
+        })
+        .fold(0.0, |m, x| if x > m || x.is_nan() { x } else { m })
+}
+
+/// What the answer's step from `before` to `after` made alone, against the check's step from
+/// `before` ([`Runs::step_local`], into `scratch`).
+///
+/// # Errors
+/// What the check's stepper reports.
+fn step_made(
+    ctx: &Ctx<'_>,
+    runs: &mut dyn Runs,
+    (before, after): (&[f64], &[f64]),
+    scratch: &mut Vec<f64>,
+    cost: &mut Cost,
+) -> Result<f64> {
+    scratch.resize(before.len(), 0.0);
+    runs.step_local(before, scratch, cost)?;
+    Ok(made(ctx, after, scratch, runs.step_size()))
+}
 
 /// The local mode's target: what a step may make per unit step (`rate`, in units of the
 /// tolerance), and the largest step (`cap`: the step the run started again with).
@@ -37,9 +77,10 @@ pub(super) enum Verdict {
 /// window to window.
 pub(super) struct LocalRun {
     target: Local,
-    /// What each step of the window made, NaN where not measured
-    /// ([`advance`](super::window::advance) fills it).
-    pub(super) made: Vec<f64>,
+    /// What each step of the window made, NaN where not measured ([`Self::after_step`]).
+    made: Vec<f64>,
+    /// The check's step for a measure.
+    scratch: Vec<f64>,
     /// The largest per unit step over the window's measured steps, and how much it grew
     /// across the window.
     rate: f64,
@@ -68,6 +109,7 @@ impl LocalRun {
         LocalRun {
             target,
             made: Vec::new(),
+            scratch: Vec::new(),
             rate: 0.0,
             trend: 1.0,
             probe: None,
@@ -76,6 +118,33 @@ impl LocalRun {
             relax: false,
             ceiling: None,
         }
+    }
+
+    /// A window begins.
+    pub(super) fn start_window(&mut self) {
+        self.made.clear();
+    }
+
+    /// After the answer's step from `before` to `after`: with `measured`, what it made alone
+    /// (the window's first and last steps), else NaN (measured by [`Self::judge`] if need be).
+    ///
+    /// # Errors
+    /// What the check's stepper reports.
+    pub(super) fn after_step(
+        &mut self,
+        ctx: &Ctx<'_>,
+        runs: &mut dyn Runs,
+        steps: (&[f64], &[f64]),
+        measured: bool,
+        cost: &mut Cost,
+    ) -> Result<()> {
+        let m = if measured {
+            step_made(ctx, runs, steps, &mut self.scratch, cost)?
+        } else {
+            f64::NAN
+        };
+        self.made.push(m);
+        Ok(())
     }
 
     /// The verdict on a window of step `hw` from `(t, answer)` whose steps are `points`
@@ -127,15 +196,27 @@ impl LocalRun {
                 .filter(|&&x| x >= floor)
                 .fold(0.0_f64, |a, &b| a.max(b))
         };
-        let m = &mut self.made;
-        let j_cut = if m.first().is_some_and(|&x| x > limit) {
+        let j_cut = if self.made.first().is_some_and(|&x| x > limit) {
             Some(0)
-        } else if measured(m) > limit {
-            made_all(ctx, runs, answer, points, m, cost);
-            m.iter().position(|&x| x > limit)
+        } else if measured(&self.made) > limit {
+            // Every step measured; one whose measure fails counts as making infinitely much.
+            for (j, m) in self.made.iter_mut().enumerate() {
+                if m.is_nan() {
+                    let before = if j == 0 {
+                        answer
+                    } else {
+                        &points[j - 1].answer
+                    };
+                    let steps = (before, &points[j].answer[..]);
+                    *m = step_made(ctx, runs, steps, &mut self.scratch, cost)
+                        .unwrap_or(f64::INFINITY);
+                }
+            }
+            self.made.iter().position(|&x| x > limit)
         } else {
             None
         };
+        let m = &self.made;
         self.rate = measured(m) / hw;
         // Where what the steps make grew across the window (an approach), the next window
         // makes more again: the trend, first step to last, carried forward.

@@ -69,6 +69,7 @@
 //! methods cannot see: a pulse narrower than the steps, a kink at a known time.
 
 mod attempts;
+mod between;
 mod control;
 mod events;
 mod features;

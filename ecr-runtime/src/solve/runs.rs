@@ -10,7 +10,7 @@
 use std::sync::Arc;
 
 use super::SolveCache;
-use super::window::Which;
+use super::between::Which;
 use crate::error::{Error, Result};
 use crate::operator::{BankArithmetic, LinearOperator};
 use crate::stepper::{EcStepper, Predictor, RuntimeKernel, SolverSettings, StepReport};

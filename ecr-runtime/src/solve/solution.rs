@@ -410,15 +410,15 @@ impl<S: System> Solution<S> {
         };
         let check_k = check.map_or(answer, |c| &c[k * d..(k + 1) * d]);
         let mut cost = super::runs::Cost::default();
-        let e = super::window::value_between(
-            super::window::ValueAt {
+        let e = super::between::value_between(
+            super::between::ValueAt {
                 t,
                 base: (dense.t[k], answer, check_k, 0.0),
                 n: k,
                 tolerance: (rtol, atol),
                 unit,
                 verified: check.is_some(),
-                source: super::window::Source::Rule,
+                source: super::between::Source::Rule,
             },
             interp,
             &mut FreshSteps {
@@ -457,7 +457,7 @@ struct FreshSteps<'a, S: System> {
     cost: &'a mut super::runs::Cost,
 }
 
-impl<S: System> super::window::PartialSteps for FreshSteps<'_, S> {
+impl<S: System> super::between::PartialSteps for FreshSteps<'_, S> {
     fn drift(&mut self, y: &mut [f64], dt: f64) -> Result<()> {
         super::runs::drift(self.system, y, dt)
     }
@@ -468,13 +468,13 @@ impl<S: System> super::window::PartialSteps for FreshSteps<'_, S> {
         dt: f64,
         out: (&mut [f64], &mut [f64]),
         seed: Option<super::runs::Seed<'_>>,
-        which: super::window::Which,
+        which: super::between::Which,
     ) -> Result<()> {
         let cache = Arc::new(super::SolveCache::<S>::new(4));
         let mut runs = super::runs::PairRuns::new(
             self.system,
             self.r,
-            self.check && which != super::window::Which::Answer,
+            self.check && which != super::between::Which::Answer,
             dt,
             self.settings,
             self.settings.banks,
