@@ -145,6 +145,9 @@ impl LinearOperator for Dense {
         match arithmetic {
             BankArithmetic::Extended => self.kernel_bank(h, taus, n),
             BankArithmetic::F64 => self.bank_f64(h, taus, n, NodeFunctions::legendre(taus, n)),
+            BankArithmetic::StepExtended => {
+                self.bank_step_extended(h, taus, n, NodeFunctions::legendre(taus, n))
+            }
         }
     }
 }
@@ -202,6 +205,48 @@ impl Dense {
 }
 
 impl Dense {
+    /// The bank with the step's node (τ = 1) as [`bank`](Self::bank) builds it and the other
+    /// nodes in f64 through [`DenseForm`] where a route serves them, else as
+    /// [`bank`](Self::bank) ([`BankArithmetic::StepExtended`]).
+    fn bank_step_extended(
+        &self,
+        h: f64,
+        taus: &[f64],
+        p: usize,
+        f: NodeFunctions,
+    ) -> Result<DenseBank> {
+        self.check_bank(h, taus, p)?;
+        let form = self.form();
+        let others = taus.iter().filter(|&&t| t != 1.0);
+        let tmax = others.fold(0.0f64, |m, t| m.max(t.abs()));
+        let route = form.route(tmax * h);
+        let mut phis = Vec::with_capacity(taus.len() * (p + 1));
+        let mut lo = Vec::with_capacity(taus.len());
+        for (i, tau) in taus.iter().enumerate() {
+            match route {
+                Some((normal, _)) if *tau != 1.0 => {
+                    phis.extend(form.node(&self.a, &f, i, tau * h, p, normal)?);
+                    lo.push(None);
+                }
+                _ => {
+                    let th = tau * h;
+                    let x = &self.a * th;
+                    let x_lo = product_error(self.a.as_slice(), th, &x);
+                    let (m, l) = f.dense_in(i, &x, Some(&x_lo), p, false)?;
+                    phis.extend(m);
+                    lo.push(l);
+                }
+            }
+        }
+        Ok(DenseBank {
+            dim: self.a.nrows(),
+            len: taus.len(),
+            p,
+            phis,
+            lo,
+        })
+    }
+
     /// The bank in f64 ([`BankArithmetic::F64`]) through [`DenseForm`].
     fn bank_f64(&self, h: f64, taus: &[f64], p: usize, f: NodeFunctions) -> Result<DenseBank> {
         self.check_bank(h, taus, p)?;

@@ -69,8 +69,10 @@ impl NodeFunctions {
 
     /// The `p + 1` matrix functions at `X = τ_i h A`, and the low part of the propagator
     /// `e^X = out[0] + lo` where it is carried in double-double: at τ = 1 in a Legendre bank,
-    /// for `d ≤ DD_PROPAGATOR_MAX_DIM`. The other nodes of a Legendre bank take `out[0]` from
-    /// the double-double exponential too for `d ≤ DD_STAGE_PROPAGATOR_MAX_DIM`. `x_lo`, if
+    /// for `d ≤ DD_PROPAGATOR_MAX_DIM`. The stage nodes of a Legendre bank (τ < 1) take
+    /// `out[0]` from the double-double exponential too for `d ≤ DD_STAGE_PROPAGATOR_MAX_DIM`;
+    /// the predictor's nodes beyond the step (τ > 1), which only start the next step's stage
+    /// iteration, take it in f64. `x_lo`, if
     /// given, is the rounding error of `x` (`X = x + x_lo`), taken into the double-double
     /// propagator only.
     #[allow(clippy::type_complexity)]
@@ -81,6 +83,20 @@ impl NodeFunctions {
         x_lo: Option<&nalgebra::DMatrix<f64>>,
         p: usize,
     ) -> Result<(Vec<nalgebra::DMatrix<f64>>, Option<nalgebra::DMatrix<f64>>)> {
+        self.dense_in(i, x, x_lo, p, true)
+    }
+
+    /// [`dense`](Self::dense), with the stage propagators (τ < 1) from the double-double
+    /// exponential only if `dd_stages` (else in f64; τ = 1 as in `dense`).
+    #[allow(clippy::type_complexity)]
+    pub(crate) fn dense_in(
+        &self,
+        i: usize,
+        x: &nalgebra::DMatrix<f64>,
+        x_lo: Option<&nalgebra::DMatrix<f64>>,
+        p: usize,
+        dd_stages: bool,
+    ) -> Result<(Vec<nalgebra::DMatrix<f64>>, Option<nalgebra::DMatrix<f64>>)> {
         match &self.legendre {
             None => Ok((crate::phi::phi_dense(x, p)?, None)),
             Some((k, maps)) => {
@@ -88,7 +104,7 @@ impl NodeFunctions {
                 let (mut out, lo) = if self.carries_dd(i) && d <= DD_PROPAGATOR_MAX_DIM {
                     let (hi, lo) = crate::phi::expm_dd_split(x, x_lo, false)?;
                     (vec![hi], Some(lo))
-                } else if d <= DD_STAGE_PROPAGATOR_MAX_DIM {
+                } else if dd_stages && d <= DD_STAGE_PROPAGATOR_MAX_DIM && self.taus[i] <= 1.0 {
                     (vec![crate::phi::expm_dd(x)?.0], None)
                 } else {
                     (crate::phi::phi_dense(x, 0)?, None)
@@ -124,11 +140,14 @@ impl NodeFunctions {
 /// ([`PhiBank::propagate_dd`](super::PhiBank::propagate_dd)).
 pub const DD_PROPAGATOR_MAX_DIM: usize = 256;
 
-/// Dense kernel banks up to this dimension also take the stage propagators `e^{τ_i hA}` (τ ≠ 1)
+/// Dense kernel banks up to this dimension also take the stage propagators `e^{τ_i hA}` (τ < 1)
 /// from the double-double exponential, rounded to f64: the f64 scaling and squaring leaves
 /// their row sums off by up to 5e−13 at `‖hA‖ = 1e4` (a stage value that does not keep a
 /// conserved mean), the rounded double-double by an ulp. The set-up costs about (d/64)³·0.05 s
-/// per node more, so larger operators keep the f64 algorithm for the stages.
+/// per node more, so larger operators keep the f64 algorithm for the stages. The predictor's
+/// nodes beyond the step (τ > 1) are f64 at every dimension: they only start the next step's
+/// stage iteration, whose converged values do not depend on how they were started beyond the
+/// iteration's tolerance.
 pub const DD_STAGE_PROPAGATOR_MAX_DIM: usize = 64;
 
 /// The distinct values of a spectrum (eigenvalues or diagonal entries), so that a bank

@@ -21,6 +21,14 @@ pub enum BankArithmetic {
     /// route's bound and its measurement) is far below what it is used for: one partial step
     /// to a value between grid points, a step size only tried.
     F64,
+    /// The step's propagator `e^{hA}` (τ = 1) and its kernels exactly as under `Extended`, every
+    /// other node in f64 as under `F64`: what a run checked by a second run needs. An error
+    /// of the propagator at τ = 1 is common to every method on the same steps (a check cannot
+    /// see it), while the stage nodes differ from method to method, so that their f64 errors
+    /// show in the difference of the two; the predictor's nodes only start an iteration.
+    /// Operators without an f64 route of their own build the `Extended` bank. `solve`'s runs
+    /// use it.
+    StepExtended,
 }
 
 /// A linear operator `A: ℝᵈ → ℝᵈ` that can precompute its φ-functions.

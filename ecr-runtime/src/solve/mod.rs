@@ -369,9 +369,19 @@ pub fn linspace(a: f64, b: f64, n: usize) -> Vec<f64> {
 /// at least the least normal f64): the tolerance's own weights atol + rtol·|y| say what size is
 /// small, so a state of 1e−100 solved with rtol alone converges relative to its size, as one
 /// of size 1 does. A tolerance with atol ≥ rtol keeps the floor 1: the same steps, to the bit.
+///
+/// A verified solve's runs build their banks as
+/// [`BankArithmetic::StepExtended`](crate::operator::BankArithmetic::StepExtended) where the
+/// settings ask for the default `Extended`: the step's propagator, common to the answer and its
+/// check, as accurate as in a fixed run; the stage and predictor nodes, which differ between
+/// the two methods (or only start an iteration), in f64.
 fn stage_settings(options: &Options, verified: bool) -> crate::stepper::SolverSettings {
+    use crate::operator::BankArithmetic;
     use crate::stepper::StageScale;
     let mut settings = options.settings;
+    if verified && settings.banks == BankArithmetic::Extended {
+        settings.banks = BankArithmetic::StepExtended;
+    }
     if verified && settings.scale == StageScale::Global && options.rtol > 0.0 {
         let floor = (options.atol / options.rtol).clamp(f64::MIN_POSITIVE, 1.0);
         if floor < 1.0 {
@@ -384,8 +394,9 @@ fn stage_settings(options: &Options, verified: bool) -> crate::stepper::SolverSe
 /// Values between grid points of a verified solve take their one partial step with f64 banks
 /// ([`BankArithmetic::F64`](crate::operator::BankArithmetic::F64)) when the tolerance is at
 /// least this: a bank's error (a few d·ε relative, docs/banks.md) then enters one step's value
-/// far below the tolerance, and nothing carries it on. Tighter tolerances, and fixed-step
-/// solves, keep the default banks.
+/// far below the tolerance, and nothing carries it on. Tighter tolerances take the banks of the
+/// runs ([`BankArithmetic::StepExtended`](crate::operator::BankArithmetic::StepExtended)), and
+/// fixed-step solves the default banks.
 pub const F64_BETWEEN_MIN_TOL: f64 = 1e-10;
 
 /// The banks' arithmetic of the partial steps to values between grid points.
@@ -395,10 +406,12 @@ pub(super) fn between_banks(
     verified: bool,
 ) -> crate::operator::BankArithmetic {
     use crate::operator::BankArithmetic;
-    if verified && rtol.max(atol) >= F64_BETWEEN_MIN_TOL {
+    if !verified {
+        BankArithmetic::Extended
+    } else if rtol.max(atol) >= F64_BETWEEN_MIN_TOL {
         BankArithmetic::F64
     } else {
-        BankArithmetic::Extended
+        BankArithmetic::StepExtended
     }
 }
 

@@ -217,6 +217,8 @@ pub(super) struct PairRuns<'a, S: System> {
     seed_buf: Vec<f64>,
     /// The answer's steps and their sweeps, for [`seed_pays`].
     swept: (usize, usize),
+    /// The signs of the check's kicks ([`Kick`]).
+    kick: Kick,
 }
 
 impl<'a, S: System> PairRuns<'a, S> {
@@ -266,6 +268,7 @@ impl<'a, S: System> PairRuns<'a, S> {
             stiffness: None,
             seed_buf: Vec::new(),
             swept: (0, 0),
+            kick: Kick::default(),
         })
     }
 
@@ -317,6 +320,38 @@ impl<'a, S: System> PairRuns<'a, S> {
             c.set_step_size(dt)?;
         }
         Ok(pair)
+    }
+}
+
+/// The check's rounding made independent of the answer's. Both runs take their steps' ends
+/// from the same bank functions at τ = 1 (the propagator and the kernels `Ψ_j(1, hA)`, j < r −
+/// 1), so the f64 rounding of those kernels times the nearly equal moments is an error the two
+/// runs share, which their difference does not show; where the flow amplifies rounding (a
+/// separatrix: one ulp per step grows to the tolerance) that shared part can be most of the
+/// answer's error. After each of its steps the check's state moves by one unit of rounding of
+/// that step's increment, `±ε |y₁ − y₀|` per component, with signs from a fixed pseudo-random
+/// sequence (the same for every solve: results are reproducible): a rounding error of the size
+/// of the shared one that the answer does not make, carried and amplified by the flow as the
+/// answer's own rounding is, so that it shows in the estimate (the idea of stochastic
+/// arithmetic, CESTAC). Where the flow does not amplify, it adds ~ε√n of the increments, below
+/// the round-off model of [`estimate`].
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Kick(u64);
+
+impl Default for Kick {
+    fn default() -> Self {
+        Kick(0x9e37_79b9_7f4a_7c15)
+    }
+}
+
+impl Kick {
+    /// The next sign, ±1 (a linear congruential generator's top bit).
+    fn next(&mut self) -> f64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        if self.0 >> 63 == 0 { 1.0 } else { -1.0 }
     }
 }
 
@@ -373,6 +408,8 @@ impl<S: System> Runs for PairRuns<'_, S> {
         if let Some(c) = &mut self.check {
             let rep = c.step(yc)?;
             check_cost(cost, &rep);
+            let kick = &mut self.kick;
+            c.perturb(yc, |_, y1| y1 + kick.next() * f64::EPSILON * y1.abs());
         }
         Ok(())
     }

@@ -338,6 +338,21 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
         Ok(())
     }
 
+    /// Moves the state `y` that the last step returned to `f(y₀ᵢ, yᵢ)` for each component
+    /// (y₀ the state that step started from), and the stepper's record of it alike, so that the
+    /// next step still continues this one (the predictor, the compensated update). A `y` that is
+    /// not what the last step returned is left as it is. Allocation-free.
+    pub(crate) fn perturb(&mut self, y: &mut [f64], mut f: impl FnMut(f64, f64) -> f64) {
+        self.buf.with_parts(|parts| {
+            if *parts.last == *y {
+                for ((v, l), &v0) in y.iter_mut().zip(parts.last.iter_mut()).zip(parts.y0.iter()) {
+                    *v = f(v0, *v);
+                    *l = *v;
+                }
+            }
+        });
+    }
+
     /// Advances y by one step of size h in place. Allocation-free.
     ///
     /// # Errors
