@@ -25,7 +25,11 @@
 //! the restriction of P̃_j to [0, τ], with `|K_jm(τ)| ≤ 2m+1`), so `Ψ_j(τ, x) = Σ_m K_jm(τ)
 //! ψ_m(τx)`, and for ψ:
 //!
-//! * `|x| ≤ 1/2`: the Taylor series `ψ_m(x) = (−1)^m Σ_{k≥m} k!/((k−m)!(k+m+1)!) x^k`
+//! * n ≥ 3 and `2⁻¹⁰ ≤ |x| ≤ 4`: the Taylor series (below) of `ψ_{n−2}` and `ψ_{n−1}`, then
+//!   the three-term recurrence `ψ_{m−1} = ψ_{m+1} − 2(2m+1) ψ_m / x` downwards (ψ_m is
+//!   `e^{x/2}` times a modified spherical Bessel function, the recurrence's minimal solution, so
+//!   the downward direction is stable);
+//! * otherwise, `|x| ≤ 1/2`: the Taylor series `ψ_m(x) = (−1)^m Σ_{k≥m} k!/((k−m)!(k+m+1)!) x^k`
 //!   (consecutive terms shrink by at least 4, no cancellation);
 //! * `|x| ≥ 4n²` (n functions): the exact finite sum from repeated integration by parts,
 //!   `ψ_m(x) = Σ_{q≤m} D_mq ((−1)^{m+q} e^x − 1)/x^{q+1}` with `D_mq = P̃_m^{(q)}(1) =
