@@ -10,6 +10,22 @@ use crate::error::{Error, Result};
 /// For the `O(d²)` and larger storage that constructors would otherwise allocate with
 /// `vec!`/`DMatrix::zeros`, which abort the process when the allocation fails.
 pub fn ensure_allocatable(what: &str, entries: Option<usize>) -> Result<()> {
+    ensure_allocatable_for(|| what.to_string(), entries)
+}
+
+/// Storage this small (bytes) is granted without asking the allocator: if it fails, so would
+/// everything after it. The banks of partial steps (a value between grid points) ask for
+/// a few hundred bytes each, thousands of times.
+const SMALL: usize = 1 << 20;
+
+/// [`ensure_allocatable`] with the description made only for an error.
+pub(crate) fn ensure_allocatable_for(
+    what: impl FnOnce() -> String,
+    entries: Option<usize>,
+) -> Result<()> {
+    if entries.is_some_and(|e| e <= SMALL / size_of::<f64>()) {
+        return Ok(());
+    }
     let bytes = entries.and_then(|e| e.checked_mul(size_of::<f64>()));
     let granted = bytes.is_some_and(|b| {
         isize::try_from(b).is_ok() && Vec::<u8>::new().try_reserve_exact(b).is_ok()
@@ -17,6 +33,7 @@ pub fn ensure_allocatable(what: &str, entries: Option<usize>) -> Result<()> {
     if granted {
         return Ok(());
     }
+    let what = what();
     let size = match entries {
         Some(e) => format!("{e} numbers, {}", format_bytes(e as f64 * 8.0)),
         None => "more numbers than a usize counts".to_string(),

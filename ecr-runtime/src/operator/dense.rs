@@ -13,7 +13,7 @@ use super::normal::DenseForm;
 use super::traits::{BankArithmetic, LinearOperator, PhiBank};
 use crate::error::{Error, Result};
 use crate::phi::validate_matrix;
-use crate::storage::ensure_allocatable;
+use crate::storage::ensure_allocatable_for;
 
 /// A general dense matrix `A` (non-normal allowed); φ by scaling and modified squaring
 /// ([`phi_dense`](crate::phi::phi_dense)); under [`BankArithmetic::F64`] through its
@@ -170,11 +170,13 @@ impl Dense {
     fn check_bank(&self, h: f64, taus: &[f64], p: usize) -> Result<()> {
         check_bank_scale(h, taus, self.a.amax())?;
         let d = self.a.nrows();
-        ensure_allocatable(
-            &format!(
-                "the φ-bank of a dense {d} × {d} operator ({} nodes, p = {p})",
-                taus.len()
-            ),
+        ensure_allocatable_for(
+            || {
+                format!(
+                    "the φ-bank of a dense {d} × {d} operator ({} nodes, p = {p})",
+                    taus.len()
+                )
+            },
             taus.len()
                 .checked_mul(p + 2)
                 .and_then(|m| m.checked_add(8))

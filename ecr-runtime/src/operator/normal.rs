@@ -79,6 +79,8 @@ struct Spectrum {
     partner: Vec<Option<usize>>,
     /// The largest |λ| (the 2-norm of the balanced matrix).
     radius: f64,
+    /// `D_r / D_c` at (r, c), column-major: the balancing undone entry by entry.
+    ratio: Vec<f64>,
 }
 
 /// Osborne's balancing in the 2-norm: `(D, D⁻¹AD)`, D's entries unrounded.
@@ -182,6 +184,7 @@ impl Spectrum {
             })
             .collect();
         Some(Spectrum {
+            ratio: Vec::new(),
             ur: u.map(|z| z.re),
             ui: u.map(|z| z.im),
             lambda,
@@ -199,8 +202,13 @@ impl DenseForm {
         let (na, nb) = (norm1(a), norm1(&b));
         // Scaling and squaring balances where that halves the 1-norm.
         let balanced = nb < 0.5 * na;
+        let d = a.nrows();
+        let spectrum = Spectrum::of(&b).map(|mut sp| {
+            sp.ratio = (0..d * d).map(|i| scale[i % d] / scale[i / d]).collect();
+            sp
+        });
         DenseForm {
-            spectrum: Spectrum::of(&b),
+            spectrum,
             scale,
             balanced,
             norm1: if balanced { nb } else { na },
@@ -245,7 +253,7 @@ impl DenseForm {
         normal: bool,
     ) -> Result<Vec<DMatrix<f64>>> {
         match &self.spectrum {
-            Some(sp) if normal => spectral_node(&self.scale, sp, f, i, th, p),
+            Some(sp) if normal => spectral_node(sp, f, i, th, p),
             _ => general_node(a, self.balanced.then_some(&self.scale[..]), f, i, th, p),
         }
     }
@@ -279,7 +287,6 @@ fn general_node(
 
 /// The normal route at one node: `D Re(U f(τhΛ) Uᴴ) D⁻¹` for the p + 1 functions.
 fn spectral_node(
-    scale: &[f64],
     sp: &Spectrum,
     f: &NodeFunctions,
     i: usize,
@@ -292,11 +299,28 @@ fn spectral_node(
         lambda,
         partner,
         radius,
+        ..
     } = sp;
     let d = ur.nrows();
-    // fl[k (p + 1) + j] = f_j(τhλ_k).
-    let mut fl = vec![Complex64::new(0.0, 0.0); d * (p + 1)];
-    let mut rbuf = vec![0.0f64; p + 1];
+    // fl[k (p + 1) + j] = f_j(τhλ_k); on the stack for small banks (a value between grid points
+    // builds a bank of a 2 × 2 operator per call).
+    let len = d * (p + 1);
+    let mut fl_stack = [Complex64::new(0.0, 0.0); STACK_VALUES];
+    let mut fl_heap = Vec::new();
+    let fl: &mut [Complex64] = if len <= STACK_VALUES {
+        &mut fl_stack[..len]
+    } else {
+        fl_heap.resize(len, Complex64::new(0.0, 0.0));
+        &mut fl_heap
+    };
+    let mut rbuf_stack = [0.0f64; STACK_VALUES];
+    let mut rbuf_heap = Vec::new();
+    let rbuf: &mut [f64] = if p < STACK_VALUES {
+        &mut rbuf_stack[..p + 1]
+    } else {
+        rbuf_heap.resize(p + 1, 0.0);
+        &mut rbuf_heap
+    };
     for k in 0..d {
         let l = lambda[k];
         let (done, row) = fl.split_at_mut(k * (p + 1));
@@ -306,8 +330,8 @@ fn spectral_node(
                 *o = v.conj();
             }
         } else if l.im == 0.0 {
-            f.real(i, th * l.re, &mut rbuf);
-            for (o, v) in row.iter_mut().zip(&rbuf) {
+            f.real(i, th * l.re, rbuf);
+            for (o, v) in row.iter_mut().zip(rbuf.iter()) {
                 *o = Complex64::new(*v, 0.0);
             }
         } else {
@@ -321,30 +345,41 @@ fn spectral_node(
             f64::MAX
         )));
     }
+    // Re(U f(Λ) Uᴴ)_rc = Σ_k Re(W_rk conj(U_ck)) with W = U f(Λ), summed over k in order into
+    // the column-major result, then scaled by D.
+    let (ur, ui) = (ur.as_slice(), ui.as_slice());
+    let mut w_stack = [(0.0f64, 0.0f64); STACK_VALUES];
+    let mut w_heap = Vec::new();
+    let w: &mut [(f64, f64)] = if d <= STACK_VALUES {
+        &mut w_stack[..d]
+    } else {
+        w_heap.resize(d, (0.0, 0.0));
+        &mut w_heap
+    };
     let mut out = Vec::with_capacity(p + 1);
-    let (mut wr, mut wi) = (DMatrix::<f64>::zeros(d, d), DMatrix::<f64>::zeros(d, d));
     for j in 0..=p {
-        // W = U diag(f_j): Wr = Ur Re f − Ui Im f, Wi = Ur Im f + Ui Re f.
+        let mut m = DMatrix::<f64>::zeros(d, d);
+        let ms = m.as_mut_slice();
         for k in 0..d {
             let v = fl[k * (p + 1) + j];
-            for r in 0..d {
-                let (a, b) = (ur[(r, k)], ui[(r, k)]);
-                wr[(r, k)] = a * v.re - b * v.im;
-                wi[(r, k)] = a * v.im + b * v.re;
+            let (uk_r, uk_i) = (&ur[k * d..(k + 1) * d], &ui[k * d..(k + 1) * d]);
+            for ((wv, &a), &b) in w.iter_mut().zip(uk_r).zip(uk_i) {
+                *wv = (a * v.re - b * v.im, a * v.im + b * v.re);
+            }
+            for (c, col) in ms.chunks_exact_mut(d).enumerate() {
+                let (uc_r, uc_i) = (uk_r[c], uk_i[c]);
+                for (acc, &(wr, wi)) in col.iter_mut().zip(w.iter()) {
+                    *acc += wr * uc_r + wi * uc_i;
+                }
             }
         }
-        // Re(W Uᴴ) = Wr Urᵀ + Wi Uiᵀ.
-        let mut m = DMatrix::<f64>::zeros(d, d);
-        for c in 0..d {
-            for r in 0..d {
-                let mut acc = 0.0;
-                for k in 0..d {
-                    acc += wr[(r, k)] * ur[(c, k)] + wi[(r, k)] * ui[(c, k)];
-                }
-                m[(r, c)] = acc * (scale[r] / scale[c]);
-            }
+        for (v, q) in ms.iter_mut().zip(&sp.ratio) {
+            *v *= q;
         }
         out.push(m);
     }
     Ok(out)
 }
+
+/// Scratch of [`spectral_node`] kept on the stack up to this many values.
+const STACK_VALUES: usize = 64;

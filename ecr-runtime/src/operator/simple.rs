@@ -12,7 +12,7 @@ use super::entries::{Distinct, NodeFunctions};
 use super::traits::{LinearOperator, PhiBank, byte_sum};
 use crate::error::{Error, Result};
 use crate::phi::{exp_dd, two_prod, two_sum};
-use crate::storage::ensure_allocatable;
+use crate::storage::ensure_allocatable_for;
 
 /// `hi + lo = (eh + el) y` for one entry: the product in double-double.
 #[inline]
@@ -545,12 +545,14 @@ impl Diagonal {
         let entries = Distinct::real(&self.diag);
         let carried = (0..taus.len()).filter(|&i| f.carries_dd(i)).count();
         let size = DiagonalBankSize::new(d, entries.len(), taus.len(), p, carried, share);
-        ensure_allocatable(
-            &format!(
-                "the φ-bank of a diagonal of dimension {d} ({} nodes, {} functions)",
-                taus.len(),
-                p + 1
-            ),
+        ensure_allocatable_for(
+            || {
+                format!(
+                    "the φ-bank of a diagonal of dimension {d} ({} nodes, {} functions)",
+                    taus.len(),
+                    p + 1
+                )
+            },
             size.bytes.map(|b| b.div_ceil(8)),
         )?;
         let carries = |i| f.carries_dd(i);

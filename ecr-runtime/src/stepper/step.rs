@@ -17,7 +17,7 @@ use super::settings::{Predictor, SolverSettings, StageScale, StageSolver, StepRe
 use super::stopping::{Y1_OVERFLOWED, all_finite, g_fault};
 use crate::error::{Error, Result};
 use crate::operator::{LinearOperator, PhiBank};
-use crate::storage::ensure_allocatable;
+use crate::storage::ensure_allocatable_for;
 use crate::system::System;
 
 /// ECrP for a [`System`] with kernel `K` and stage storage `B`.
@@ -140,8 +140,8 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
         crate::system::check_system(&system)?;
         if settings.solver != StageSolver::FixedPoint {
             let (s, d) = (kernel.s(), system.dim());
-            ensure_allocatable(
-                &format!("Newton for d = {d}, s = {s} (2s²d² + 2d² + 3sd numbers)"),
+            ensure_allocatable_for(
+                || format!("Newton for d = {d}, s = {s} (2s²d² + 2d² + 3sd numbers)"),
                 newton_entries(s, d),
             )?;
         }
