@@ -286,7 +286,11 @@ impl MethodTable {
 
     /// Identifier used for generated modules and constants, e.g. `ec_r3_s3`.
     pub fn ident(&self) -> String {
-        format!("{}_r{}_s{}", self.family.name(), self.r, self.s)
+        let kind = match self.quadrature {
+            QuadratureKind::GaussLegendre => "",
+            QuadratureKind::GaussLobatto => "_lobatto",
+        };
+        format!("{}_r{}_s{}{kind}", self.family.name(), self.r, self.s)
     }
 
     /// Nodes as `f64`.
