@@ -168,7 +168,7 @@ pub(super) fn run(
     let (mut doubted, mut strained) = (false, 0usize);
     let with_observer = observer.is_some();
     // Where the steps of the current size began, their size and how many were kept since.
-    let mut segment = (ctx.t0, f64::NAN, 0usize);
+    let mut segment = ((ctx.t0, 0.0), f64::NAN, 0usize);
     // When the run's level last changed, and the estimate then; the growth of the windows
     // since, over the last 1/RECENT of the span.
     let mut changed = (ctx.t0, 0.0_f64);
@@ -182,7 +182,7 @@ pub(super) fn run(
     let mut local = local.map(LocalRun::new);
     while state.t < ctx.t_end - ctx.same_time && !record.ended() {
         let stop = ctx.next_stop(state.t);
-        let room = stop - state.t;
+        let room = (stop - state.t) - state.t_lo;
         // A window is at most 1/WINDOWS_MIN of the span.
         let steps_max = WINDOW.min(((span / WINDOWS_MIN / h).floor() as usize).max(1));
         let (steps, hw, end) = if room <= steps_max as f64 * h * (1.0 + 1e-12) {
@@ -218,9 +218,9 @@ pub(super) fn run(
         }
         runs.set_step_size(hw)?;
         let origin = if hw == segment.1 {
-            (segment.0, segment.2)
+            (segment.0.0, segment.0.1, segment.2)
         } else {
-            (state.t, 0)
+            (state.t, state.t_lo, 0)
         };
         let mut cost = Cost::default();
         let mut points = match advance(
@@ -424,6 +424,7 @@ pub(super) fn run(
         let (ev_save, t_eval_save) = (ev_prev.clone(), t_eval_next);
         let start = GridPoint {
             t: state.t,
+            t_lo: state.t_lo,
             answer: state.answer.clone(),
             check: state.check.clone(),
             est: state.worst,
@@ -479,7 +480,7 @@ pub(super) fn run(
         }
         record.cost.add(&cost);
         record.step_size_from(state.t, hw);
-        segment = (origin.0, hw, origin.1 + points.len());
+        segment = ((origin.0, origin.1), hw, origin.2 + points.len());
         // Windows integrated again in a row: the run's level is too high for the stretch, not
         // one passage in it; the level comes down to twice the step that was kept.
         // A feature inside one step (being passed) does not say that.
@@ -508,6 +509,11 @@ pub(super) fn run(
         let worst = worst.max(yielded.between);
         state = State {
             t: yielded.terminal.map_or(last.t, |(_, t)| t),
+            t_lo: if yielded.terminal.is_some() {
+                0.0
+            } else {
+                last.t_lo
+            },
             n: state.n + points.len(),
             worst,
             answer: last.answer.clone(),

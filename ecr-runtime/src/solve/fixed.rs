@@ -47,14 +47,14 @@ pub(super) fn fixed(
             (
                 k,
                 h,
-                (ctx.t0, done),
+                (ctx.t0, 0.0, done),
                 (done + k == total).then_some(ctx.t_end),
             )
         } else if rounding.is_some() {
-            (1, h, (ctx.t0, done), Some(ctx.t_end))
+            (1, h, (ctx.t0, 0.0, done), Some(ctx.t_end))
         } else {
             let last = plan.last.expect("the plan's last step");
-            (1, last, (state.t, 0), Some(ctx.t_end))
+            (1, last, (state.t, state.t_lo, 0), Some(ctx.t_end))
         };
         runs.set_step_size(size)?;
         let mut cost = Cost::default();
@@ -72,6 +72,7 @@ pub(super) fn fixed(
         record.cost.add(&cost);
         let start = GridPoint {
             t: state.t,
+            t_lo: state.t_lo,
             answer: state.answer.clone(),
             check: state.check.clone(),
             est: 0.0,
@@ -92,6 +93,7 @@ pub(super) fn fixed(
         let last = points.last().expect("a chunk has a step");
         state = State {
             t: last.t,
+            t_lo: last.t_lo,
             n: done + points.len(),
             worst: 0.0,
             answer: last.answer.clone(),

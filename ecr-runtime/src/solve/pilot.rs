@@ -69,7 +69,7 @@ pub(super) fn pilot(
                 ctx,
                 &mut *runs,
                 &ctx.start(),
-                (ctx.t0, 0),
+                (ctx.t0, 0.0, 0),
                 (steps, None),
                 None,
                 &mut cost,
