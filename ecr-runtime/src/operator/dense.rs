@@ -184,15 +184,29 @@ impl Dense {
         )
     }
 
+    /// The functions of node i at `τh = th` by the default route, with the stage propagators
+    /// from the double-double exponential only if `dd_stages` (see
+    /// [`NodeFunctions::dense_in`]), and the low part of a double-double propagator.
+    #[allow(clippy::type_complexity)]
+    fn default_node(
+        &self,
+        f: &NodeFunctions,
+        i: usize,
+        th: f64,
+        p: usize,
+        dd_stages: bool,
+    ) -> Result<(Vec<DMatrix<f64>>, Option<DMatrix<f64>>)> {
+        let x = &self.a * th;
+        let x_lo = product_error(self.a.as_slice(), th, &x);
+        f.dense_in(i, &x, Some(&x_lo), p, dd_stages)
+    }
+
     fn bank(&self, h: f64, taus: &[f64], p: usize, f: NodeFunctions) -> Result<DenseBank> {
         self.check_bank(h, taus, p)?;
         let mut phis = Vec::with_capacity(taus.len() * (p + 1));
         let mut lo = Vec::with_capacity(taus.len());
         for (i, tau) in taus.iter().enumerate() {
-            let th = tau * h;
-            let x = &self.a * th;
-            let x_lo = product_error(self.a.as_slice(), th, &x);
-            let (m, l) = f.dense(i, &x, Some(&x_lo), p)?;
+            let (m, l) = self.default_node(&f, i, tau * h, p, true)?;
             phis.extend(m);
             lo.push(l);
         }
@@ -231,10 +245,7 @@ impl Dense {
                     lo.push(None);
                 }
                 _ => {
-                    let th = tau * h;
-                    let x = &self.a * th;
-                    let x_lo = product_error(self.a.as_slice(), th, &x);
-                    let (m, l) = f.dense_in(i, &x, Some(&x_lo), p, false)?;
+                    let (m, l) = self.default_node(&f, i, tau * h, p, false)?;
                     phis.extend(m);
                     lo.push(l);
                 }
