@@ -351,7 +351,8 @@ fn ok_share() -> (usize, usize, String) {
 
 /// Acceptance (issue 42): at least 85 % of the (problem, tolerance) pairs `Ok`. Met since the
 /// local mode of a run started again (docs/solve.md §3): 184 of 207 (88.9 %) on 2026-11-29,
-/// 178 before it, 170 on 2026-11-28.
+/// 178 before it, 170 on 2026-11-28; 180 (87.0 %) on 2026-12-01, since the check's state is
+/// kicked by a unit of rounding per step (docs/solve.md §2.3).
 #[test]
 fn acceptance_at_least_85_percent_ok() {
     let (ok, n, not) = ok_share();
@@ -362,13 +363,15 @@ fn acceptance_at_least_85_percent_ok() {
     );
 }
 
-/// Acceptance (issue 55): at least 90 % of the pairs `Ok`. Not met on 2026-11-29: 184 of 207
-/// (88.9 %). The 23 refusals: duffing_sep (8) and pendulum_sep (3) on their separatrices,
+/// Acceptance (issue 55): at least 90 % of the pairs `Ok`. Not met on 2026-12-01: 180 of 207
+/// (87.0 %; 184 on 2026-11-29, before the check's kicks, which cost pendulum 1e−9, henon_heiles
+/// 1e−8 and 1e−9 and duffing_sep 1e−4, pairs where one ulp per step grows to a share of the
+/// tolerance). The 23 refusals of 2026-11-29: duffing_sep (8) and pendulum_sep (3) on their separatrices,
 /// lorenz_long (4), lorenz, pendulum and henon_heiles at 1e−10 … 1e−11 (5), all with the
 /// estimate passing the tolerance however small the step; kepler_passage at 1e−9 … 1e−11
 /// (3), where what a step makes at the passage is below the rounding that can be told from it.
 #[test]
-#[ignore = "target not met: 184 of 207 Ok (88.9 %), no false Ok (2026-11-29)"]
+#[ignore = "target not met: 180 of 207 Ok (87.0 %), no false Ok (2026-12-01)"]
 fn acceptance_at_least_90_percent_ok() {
     let (ok, n, not) = ok_share();
     assert!(
