@@ -328,13 +328,15 @@ impl<'a, S: System> PairRuns<'a, S> {
 /// 1), so the f64 rounding of those kernels times the nearly equal moments is an error the two
 /// runs share, which their difference does not show; where the flow amplifies rounding (a
 /// separatrix: one ulp per step grows to the tolerance) that shared part can be most of the
-/// answer's error. After each of its steps the check's state moves by one unit of rounding of
-/// that step's increment, `±ε |y₁ − y₀|` per component, with signs from a fixed pseudo-random
-/// sequence (the same for every solve: results are reproducible): a rounding error of the size
-/// of the shared one that the answer does not make, carried and amplified by the flow as the
-/// answer's own rounding is, so that it shows in the estimate (the idea of stochastic
-/// arithmetic, CESTAC). Where the flow does not amplify, it adds ~ε√n of the increments, below
-/// the round-off model of [`estimate`].
+/// answer's error. After each of its steps the check's state moves by one unit of rounding,
+/// `±ε |y₁|` per component, with signs from a fixed pseudo-random sequence (the same for every
+/// solve: results are reproducible): a rounding error at least of the size of the shared one
+/// that the answer does not make, carried and amplified by the flow as the answer's own
+/// rounding is, so that it shows in the estimate (the idea of stochastic arithmetic, CESTAC).
+/// One unit of rounding of the step's increment, `±ε |y₁ − y₀|`, was too small for that (the
+/// Duffing separatrix at 1e−8 stayed `Ok` 6.8 tolerances off; docs/solve.md §2.3). Where the
+/// flow does not amplify, the kicks add ~ε√n of the state, below the round-off model of
+/// [`estimate`].
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Kick(u64);
 
