@@ -40,6 +40,7 @@ mod checks;
 mod circulant;
 mod circulant2d;
 mod dense;
+mod diagonal;
 mod entries;
 mod matvec;
 mod normal;
@@ -56,9 +57,10 @@ pub use circulant2d::{
     Circulant2d, Circulant2dBank, Circulant2dWorkspace, Fourier2dBasis, Fourier2dScratch,
 };
 pub use dense::{Dense, DenseBank, DenseStatic, DenseStaticBank};
+pub use diagonal::{Diagonal, DiagonalBank};
 pub use entries::{DD_PROPAGATOR_MAX_DIM, DD_STAGE_PROPAGATOR_MAX_DIM};
 pub use oscillator::{Oscillator, OscillatorBank, OscillatorWorkspace};
-pub use simple::{Diagonal, DiagonalBank, Scalar, ScalarBank, Zero, ZeroBank};
+pub use simple::{Scalar, ScalarBank, Zero, ZeroBank};
 pub use skew::{SkewPair, SkewPairBank, SkewPairWorkspace};
 pub use spectral::{SkewGenerator, SpectralBank, SpectralBasis, SpectralWorkspace};
 pub use symmetric::{EigenBasis, Symmetric, SymmetricBank, SymmetricWorkspace};

@@ -11,9 +11,9 @@ use super::checks::{
     apply_shape, check_bank_scale, check_bank_values, combine_shape, real_overflow_cause,
 };
 use super::dense::matrix_from_rows;
+use super::diagonal::diagonal_block;
 use super::entries::{DD_PROPAGATOR_MAX_DIM, NodeFunctions};
 use super::matvec::{gemv, gemv_tr, matvec_dd};
-use super::simple::diagonal_block;
 use super::spectral::{SkewGenerator, SpectralBasis};
 use super::traits::{LinearOperator, PhiBank};
 use crate::error::Result;
