@@ -33,6 +33,7 @@
 
 mod dd;
 mod dense;
+mod expm_dd;
 mod factorial;
 mod gauss;
 mod legendre;
@@ -45,6 +46,5 @@ pub use scalar::{phi_complex, phi_diagonal, phi_real, phi_trig};
 
 pub(crate) use crate::double_double::{two_prod, two_sum};
 pub(crate) use dd::{Dd, cexp_dd, cos_sin_dd, exp_dd};
-pub(crate) use dense::{
-    check_symmetric, expm_dd, expm_dd_split, symmetric_eigen, validate as validate_matrix,
-};
+pub(crate) use dense::{check_symmetric, symmetric_eigen, validate as validate_matrix};
+pub(crate) use expm_dd::{expm_dd, expm_dd_split};
