@@ -4,12 +4,12 @@
 use std::ops::Range;
 use std::sync::{Arc, OnceLock};
 
-use nalgebra::{DMatrix, SMatrix, SVector};
+use nalgebra::{DMatrix, DMatrixView, SMatrix, SVector};
 
 use super::checks::{apply_shape, check_bank_scale, combine_shape};
 use super::entries::NodeFunctions;
-use super::matvec::{gemv, matvec_dd};
-use super::normal::DenseForm;
+use super::matvec::{gemv, matvec_dd, matvec_dd_slices};
+use super::normal::{DenseForm, NodeScratch};
 use super::traits::{BankArithmetic, LinearOperator, PhiBank};
 use crate::error::{Error, Result};
 use crate::phi::validate_matrix;
@@ -93,9 +93,11 @@ pub struct DenseBank {
     dim: usize,
     len: usize,
     p: usize,
-    /// `phis[i (p+1) + k] = φ_k(τ_i h A)`.
-    phis: Vec<DMatrix<f64>>,
-    /// Low parts of the propagators carried in double-double (`e^{τ_i hA} = phis[i (p+1)] +
+    /// The matrices in one allocation, column-major, one after the other: `φ_k(τ_i h A)` is
+    /// the `d²` numbers from `(i (p+1) + k) d²` on (a bank is built for every length a value
+    /// between grid points asks for: one allocation, not one per matrix).
+    phis: Vec<f64>,
+    /// Low parts of the propagators carried in double-double (`e^{τ_i hA} = φ_0(τ_i hA) +
     /// lo[i]`), see [`PhiBank::propagate_dd`].
     lo: Vec<Option<DMatrix<f64>>>,
 }
@@ -105,12 +107,97 @@ impl DenseBank {
     ///
     /// # Panics
     /// If `i ≥ len()` or `k > p()`.
-    pub fn matrix(&self, i: usize, k: usize) -> &DMatrix<f64> {
+    pub fn matrix(&self, i: usize, k: usize) -> DMatrixView<'_, f64> {
         assert!(
             i < self.len && k <= self.p,
             "DenseBank::matrix: index out of range"
         );
-        &self.phis[i * (self.p + 1) + k]
+        DMatrixView::from_slice(self.slot(i * (self.p + 1) + k), self.dim, self.dim)
+    }
+
+    /// The `d²` numbers of matrix `m` (= i (p + 1) + k).
+    fn slot(&self, m: usize) -> &[f64] {
+        let dd = self.dim * self.dim;
+        &self.phis[m * dd..(m + 1) * dd]
+    }
+
+    /// A bank of `len` nodes whose matrices `fill(i, out)` writes node by node (`out` the
+    /// `(p + 1) d²` numbers of node i), returning the low part of its propagator if carried.
+    fn build(
+        dim: usize,
+        len: usize,
+        p: usize,
+        mut fill: impl FnMut(usize, &mut [f64]) -> Result<Option<DMatrix<f64>>>,
+    ) -> Result<DenseBank> {
+        let per = (p + 1) * dim * dim;
+        let mut phis = vec![0.0; len * per];
+        let mut lo = Vec::with_capacity(len);
+        for i in 0..len {
+            lo.push(fill(i, &mut phis[i * per..(i + 1) * per])?);
+        }
+        Ok(DenseBank {
+            dim,
+            len,
+            p,
+            phis,
+            lo,
+        })
+    }
+}
+
+impl DenseBank {
+    /// [`PhiBank::combine`]'s loops for `d` rows. Inlined into each arm of the dispatch on d,
+    /// so that for small d (a constant there) the loops unroll: the same operations in the
+    /// same order for every d.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn combine_rows(
+        &self,
+        d: usize,
+        indices: Range<usize>,
+        y0: &[f64],
+        g: &[f64],
+        coef: &[f64],
+        m: usize,
+        out: &mut [f64],
+    ) {
+        for ((j, i), o) in indices.enumerate().zip(out.chunks_exact_mut(d)) {
+            let base = i * (self.p + 1);
+            gemv_cm(o, 1.0, self.slot(base), y0, false);
+            for (k, gk) in g.chunks_exact(d).enumerate() {
+                gemv_cm(o, coef[j * m + k], self.slot(base + k + 1), gk, true);
+            }
+        }
+    }
+}
+
+/// `out` = the matrices `ms`, one after the other.
+fn copy_matrices(ms: &[DMatrix<f64>], out: &mut [f64]) {
+    let mut at = 0;
+    for m in ms {
+        out[at..at + m.len()].copy_from_slice(m.as_slice());
+        at += m.len();
+    }
+    debug_assert_eq!(at, out.len(), "copy_matrices: p + 1 matrices fill a node");
+}
+
+/// `y = α M x + β y` for the column-major `rows × x.len()` matrix `m`, β 0 or 1, with
+/// nalgebra's `gemv` rounding (each column's `(α m_rc) x_c` added in column order): the same
+/// bits as the bank's matrices had when they were `DMatrix` values, without its set-up per
+/// call (a bank of a 2 × 2 operator applies ~50 of them per sweep).
+#[inline(always)]
+fn gemv_cm(y: &mut [f64], alpha: f64, m: &[f64], x: &[f64], beta_one: bool) {
+    let rows = y.len();
+    for (c, (&xc, col)) in x.iter().zip(m.chunks_exact(rows)).enumerate() {
+        if c == 0 && !beta_one {
+            for (yr, &a) in y.iter_mut().zip(col) {
+                *yr = alpha * a * xc;
+            }
+        } else {
+            for (yr, &a) in y.iter_mut().zip(col) {
+                *yr += alpha * a * xc;
+            }
+        }
     }
 }
 
@@ -203,19 +290,10 @@ impl Dense {
 
     fn bank(&self, h: f64, taus: &[f64], p: usize, f: NodeFunctions) -> Result<DenseBank> {
         self.check_bank(h, taus, p)?;
-        let mut phis = Vec::with_capacity(taus.len() * (p + 1));
-        let mut lo = Vec::with_capacity(taus.len());
-        for (i, tau) in taus.iter().enumerate() {
-            let (m, l) = self.default_node(&f, i, tau * h, p, true)?;
-            phis.extend(m);
-            lo.push(l);
-        }
-        Ok(DenseBank {
-            dim: self.a.nrows(),
-            len: taus.len(),
-            p,
-            phis,
-            lo,
+        DenseBank::build(self.a.nrows(), taus.len(), p, |i, out| {
+            let (m, l) = self.default_node(&f, i, taus[i] * h, p, true)?;
+            copy_matrices(&m, out);
+            Ok(l)
         })
     }
 }
@@ -236,27 +314,17 @@ impl Dense {
         let others = taus.iter().filter(|&&t| t != 1.0);
         let tmax = others.fold(0.0f64, |m, t| m.max(t.abs()));
         let route = form.route(tmax * h);
-        let mut phis = Vec::with_capacity(taus.len() * (p + 1));
-        let mut lo = Vec::with_capacity(taus.len());
-        for (i, tau) in taus.iter().enumerate() {
-            match route {
-                Some((normal, _)) if *tau != 1.0 => {
-                    phis.extend(form.node(&self.a, &f, i, tau * h, p, normal)?);
-                    lo.push(None);
-                }
-                _ => {
-                    let (m, l) = self.default_node(&f, i, tau * h, p, false)?;
-                    phis.extend(m);
-                    lo.push(l);
-                }
+        let mut scratch = NodeScratch::default();
+        DenseBank::build(self.a.nrows(), taus.len(), p, |i, out| match route {
+            Some((normal, _)) if taus[i] != 1.0 => {
+                form.node_into(&self.a, &f, i, taus[i] * h, p, normal, out, &mut scratch)?;
+                Ok(None)
             }
-        }
-        Ok(DenseBank {
-            dim: self.a.nrows(),
-            len: taus.len(),
-            p,
-            phis,
-            lo,
+            _ => {
+                let (m, l) = self.default_node(&f, i, taus[i] * h, p, false)?;
+                copy_matrices(&m, out);
+                Ok(l)
+            }
         })
     }
 
@@ -269,16 +337,10 @@ impl Dense {
         let Some((normal, _)) = form.route(tmax * h) else {
             return self.bank(h, taus, p, f);
         };
-        let mut phis = Vec::with_capacity(taus.len() * (p + 1));
-        for (i, tau) in taus.iter().enumerate() {
-            phis.extend(form.node(&self.a, &f, i, tau * h, p, normal)?);
-        }
-        Ok(DenseBank {
-            dim: d,
-            len: taus.len(),
-            p,
-            phis,
-            lo: vec![None; taus.len()],
+        let mut scratch = NodeScratch::default();
+        DenseBank::build(d, taus.len(), p, |i, out| {
+            form.node_into(&self.a, &f, i, taus[i] * h, p, normal, out, &mut scratch)?;
+            Ok(None)
         })
     }
 }
@@ -311,12 +373,12 @@ impl PhiBank for DenseBank {
         if d == 0 {
             return;
         }
-        for ((j, i), o) in indices.enumerate().zip(out.chunks_exact_mut(d)) {
-            let base = i * (self.p + 1);
-            gemv(o, 1.0, &self.phis[base], y0, 0.0);
-            for (k, gk) in g.chunks_exact(d).enumerate() {
-                gemv(o, coef[j * m + k], &self.phis[base + k + 1], gk, 1.0);
-            }
+        match d {
+            1 => self.combine_rows(1, indices, y0, g, coef, m, out),
+            2 => self.combine_rows(2, indices, y0, g, coef, m, out),
+            3 => self.combine_rows(3, indices, y0, g, coef, m, out),
+            4 => self.combine_rows(4, indices, y0, g, coef, m, out),
+            _ => self.combine_rows(d, indices, y0, g, coef, m, out),
         }
     }
 
@@ -340,7 +402,7 @@ impl PhiBank for DenseBank {
     ) -> bool {
         match &self.lo[i] {
             Some(l) => {
-                matvec_dd(&self.phis[i * (self.p + 1)], l, y0, hi, lo);
+                matvec_dd_slices(self.slot(i * (self.p + 1)), l.as_slice(), y0, hi, lo);
                 true
             }
             None => false,
@@ -350,7 +412,7 @@ impl PhiBank for DenseBank {
     fn apply(&self, i: usize, k: usize, x: &[f64], out: &mut [f64], _ws: &mut ()) {
         apply_shape(self.dim, self.len, self.p, i, k, x, out);
         if self.dim > 0 {
-            gemv(out, 1.0, &self.phis[i * (self.p + 1) + k], x, 0.0);
+            gemv_cm(out, 1.0, self.slot(i * (self.p + 1) + k), x, false);
         }
     }
 }

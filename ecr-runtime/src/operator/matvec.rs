@@ -25,6 +25,19 @@ pub(super) fn matvec_dd<R, C, S>(
     matvec_dd_cm(rows, (mh.as_slice(), ml.as_slice()), x, (hi, lo));
 }
 
+/// [`matvec_dd`] on column-major slices (`mh`, `ml`: `hi.len() × x.len()`).
+///
+/// # Panics
+/// If the shapes do not agree.
+pub(super) fn matvec_dd_slices(mh: &[f64], ml: &[f64], x: &[f64], hi: &mut [f64], lo: &mut [f64]) {
+    let rows = hi.len();
+    assert!(
+        mh.len() == rows * x.len() && ml.len() == mh.len() && lo.len() == rows,
+        "matvec_dd_slices: shapes"
+    );
+    matvec_dd_cm(rows, (mh, ml), x, (hi, lo));
+}
+
 /// [`matvec_dd`] on column-major slices, row by row (each entry's sum over k in order).
 /// Compiled twice and chosen at run time by the CPU (`multiversion`), as `phi::dense`'s
 /// double-double product: with fused multiply-add where the processor has it (`two_prod`'s

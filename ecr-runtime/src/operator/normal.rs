@@ -240,10 +240,12 @@ impl DenseForm {
         (b <= F64_BOUND_MAX).then_some((false, b))
     }
 
-    /// The `p + 1` matrices of node `i` at `τh` (`th`), through this form; `normal` says which
-    /// route serves the bank ([`route`](Self::route) at its largest τh). `a` is the
-    /// operator's matrix (general route).
-    pub(crate) fn node(
+    /// The `p + 1` matrices of node `i` at `τh` (`th`), through this form, into `out`
+    /// (column-major, one after the other: `(p + 1) d²` numbers); `normal` says which route
+    /// serves the bank ([`route`](Self::route) at its largest τh). `a` is the operator's
+    /// matrix (general route); `scratch` serves all the nodes of a bank.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn node_into(
         &self,
         a: &DMatrix<f64>,
         f: &NodeFunctions,
@@ -251,10 +253,21 @@ impl DenseForm {
         th: f64,
         p: usize,
         normal: bool,
-    ) -> Result<Vec<DMatrix<f64>>> {
+        out: &mut [f64],
+        scratch: &mut NodeScratch,
+    ) -> Result<()> {
+        if a.is_empty() {
+            return Ok(());
+        }
         match &self.spectrum {
-            Some(sp) if normal => spectral_node(sp, f, i, th, p),
-            _ => general_node(a, self.balanced.then_some(&self.scale[..]), f, i, th, p),
+            Some(sp) if normal => spectral_node(sp, f, i, th, p, out, scratch),
+            _ => {
+                let ms = general_node(a, self.balanced.then_some(&self.scale[..]), f, i, th, p)?;
+                for (o, m) in out.chunks_exact_mut(a.len()).zip(&ms) {
+                    o.copy_from_slice(m.as_slice());
+                }
+                Ok(())
+            }
         }
     }
 }
@@ -285,14 +298,17 @@ fn general_node(
     Ok(out)
 }
 
-/// The normal route at one node: `D Re(U f(τhΛ) Uᴴ) D⁻¹` for the p + 1 functions.
+/// The normal route at one node: `D Re(U f(τhΛ) Uᴴ) D⁻¹` for the p + 1 functions, into `out`
+/// (`(p + 1) d²` numbers, column-major matrices one after the other).
 fn spectral_node(
     sp: &Spectrum,
     f: &NodeFunctions,
     i: usize,
     th: f64,
     p: usize,
-) -> Result<Vec<DMatrix<f64>>> {
+    out: &mut [f64],
+    scratch: &mut NodeScratch,
+) -> Result<()> {
     let Spectrum {
         ur,
         ui,
@@ -302,25 +318,12 @@ fn spectral_node(
         ..
     } = sp;
     let d = ur.nrows();
-    // fl[k (p + 1) + j] = f_j(τhλ_k); on the stack for small banks (a value between grid points
-    // builds a bank of a 2 × 2 operator per call).
-    let len = d * (p + 1);
-    let mut fl_stack = [Complex64::new(0.0, 0.0); STACK_VALUES];
-    let mut fl_heap = Vec::new();
-    let fl: &mut [Complex64] = if len <= STACK_VALUES {
-        &mut fl_stack[..len]
-    } else {
-        fl_heap.resize(len, Complex64::new(0.0, 0.0));
-        &mut fl_heap
-    };
-    let mut rbuf_stack = [0.0f64; STACK_VALUES];
-    let mut rbuf_heap = Vec::new();
-    let rbuf: &mut [f64] = if p < STACK_VALUES {
-        &mut rbuf_stack[..p + 1]
-    } else {
-        rbuf_heap.resize(p + 1, 0.0);
-        &mut rbuf_heap
-    };
+    // fl[k (p + 1) + j] = f_j(τhλ_k), in the bank's scratch (a value between grid points
+    // builds a bank of a 2 × 2 operator per call: no allocation or clearing per node).
+    let NodeScratch { fl, rbuf, w } = scratch;
+    fl.resize(d * (p + 1), Complex64::new(0.0, 0.0));
+    rbuf.resize(p + 1, 0.0);
+    w.resize(d, (0.0, 0.0));
     for k in 0..d {
         let l = lambda[k];
         let (done, row) = fl.split_at_mut(k * (p + 1));
@@ -345,23 +348,41 @@ fn spectral_node(
             f64::MAX
         )));
     }
-    // Re(U f(Λ) Uᴴ)_rc = Σ_k Re(W_rk conj(U_ck)) with W = U f(Λ), summed over k in order into
-    // the column-major result, then scaled by D.
+    assert_eq!(
+        out.len(),
+        (p + 1) * d * d,
+        "spectral_node: room for p + 1 matrices"
+    );
     let (ur, ui) = (ur.as_slice(), ui.as_slice());
-    let mut w_stack = [(0.0f64, 0.0f64); STACK_VALUES];
-    let mut w_heap = Vec::new();
-    let w: &mut [(f64, f64)] = if d <= STACK_VALUES {
-        &mut w_stack[..d]
-    } else {
-        w_heap.resize(d, (0.0, 0.0));
-        &mut w_heap
-    };
-    let mut out = Vec::with_capacity(p + 1);
-    for j in 0..=p {
-        let mut m = DMatrix::<f64>::zeros(d, d);
-        let ms = m.as_mut_slice();
+    match d {
+        1 => assemble(1, fl, (ur, ui), &sp.ratio, w, out),
+        2 => assemble(2, fl, (ur, ui), &sp.ratio, w, out),
+        3 => assemble(3, fl, (ur, ui), &sp.ratio, w, out),
+        4 => assemble(4, fl, (ur, ui), &sp.ratio, w, out),
+        _ => assemble(d, fl, (ur, ui), &sp.ratio, w, out),
+    }
+    Ok(())
+}
+
+/// `out` = `D Re(U f_j(Λ) Uᴴ) D⁻¹` for each function j, from `fl[k (p + 1) + j] = f_j(λ_k)`:
+/// `Re(U f(Λ) Uᴴ)_rc = Σ_k Re(W_rk conj(U_ck))` with `W = U f(Λ)`, summed over k in order into
+/// the column-major result, then scaled by D (`ratio`). Inlined into each arm of the dispatch
+/// on d, so that for small d (a constant there) the loops unroll: the same operations in the
+/// same order for every d.
+#[inline(always)]
+fn assemble(
+    d: usize,
+    fl: &[Complex64],
+    (ur, ui): (&[f64], &[f64]),
+    ratio: &[f64],
+    w: &mut [(f64, f64)],
+    out: &mut [f64],
+) {
+    let p1 = fl.len() / d;
+    out.fill(0.0);
+    for (j, ms) in out.chunks_exact_mut(d * d).enumerate() {
         for k in 0..d {
-            let v = fl[k * (p + 1) + j];
+            let v = fl[k * p1 + j];
             let (uk_r, uk_i) = (&ur[k * d..(k + 1) * d], &ui[k * d..(k + 1) * d]);
             for ((wv, &a), &b) in w.iter_mut().zip(uk_r).zip(uk_i) {
                 *wv = (a * v.re - b * v.im, a * v.im + b * v.re);
@@ -373,13 +394,19 @@ fn spectral_node(
                 }
             }
         }
-        for (v, q) in ms.iter_mut().zip(&sp.ratio) {
+        for (v, q) in ms.iter_mut().zip(ratio) {
             *v *= q;
         }
-        out.push(m);
     }
-    Ok(out)
 }
 
-/// Scratch of [`spectral_node`] kept on the stack up to this many values.
-const STACK_VALUES: usize = 64;
+/// The scratch of the normal route's nodes, kept for all the nodes of a bank.
+#[derive(Default)]
+pub(crate) struct NodeScratch {
+    /// The function values `f_j(τhλ_k)`.
+    fl: Vec<Complex64>,
+    /// One real eigenvalue's function values.
+    rbuf: Vec<f64>,
+    /// A column of `U f(Λ)`.
+    w: Vec<(f64, f64)>,
+}
