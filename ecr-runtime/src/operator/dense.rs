@@ -348,16 +348,7 @@ impl Dense {
 impl PhiBank for DenseBank {
     type Workspace = ();
 
-    fn dim(&self) -> usize {
-        self.dim
-    }
-    fn len(&self) -> usize {
-        self.len
-    }
-    fn p(&self) -> usize {
-        self.p
-    }
-    fn workspace(&self) {}
+    bank_shape!(|b| b.dim, unit);
 
     fn combine(
         &self,
@@ -529,16 +520,7 @@ impl<const D: usize> DenseStatic<D> {
 impl<const D: usize> PhiBank for DenseStaticBank<D> {
     type Workspace = ();
 
-    fn dim(&self) -> usize {
-        D
-    }
-    fn len(&self) -> usize {
-        self.len
-    }
-    fn p(&self) -> usize {
-        self.p
-    }
-    fn workspace(&self) {}
+    bank_shape!(|_b| D, unit);
 
     fn combine(
         &self,

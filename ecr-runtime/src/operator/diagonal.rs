@@ -367,16 +367,7 @@ pub(super) fn diagonal_block(
 impl PhiBank for DiagonalBank {
     type Workspace = ();
 
-    fn dim(&self) -> usize {
-        self.dim
-    }
-    fn len(&self) -> usize {
-        self.len
-    }
-    fn p(&self) -> usize {
-        self.p
-    }
-    fn workspace(&self) {}
+    bank_shape!(|b| b.dim, unit);
 
     fn combine(
         &self,

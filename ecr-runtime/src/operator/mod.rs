@@ -36,6 +36,50 @@
 //! # Ok(()) }
 //! ```
 
+/// The shape of a bank, written once for all of them: [`PhiBank::dim`] from the bank `$b`
+/// (`bank_shape!(|b| 2 * b.n)`), [`PhiBank::len`] and [`PhiBank::p`] from its `len` and `p`
+/// fields; with `, unit` also the workspace of a bank that needs none.
+macro_rules! bank_shape {
+    (|$b:ident| $dim:expr) => {
+        fn dim(&self) -> usize {
+            let $b = self;
+            $dim
+        }
+        fn len(&self) -> usize {
+            self.len
+        }
+        fn p(&self) -> usize {
+            self.p
+        }
+    };
+    (|$b:ident| $dim:expr, unit) => {
+        bank_shape!(|$b| $dim);
+        fn workspace(&self) {}
+    };
+}
+
+/// [`PhiBank::join`] concurrently (rayon's `join`), for the banks whose operations are costly
+/// enough (the FFT banks).
+macro_rules! concurrent_join {
+    () => {
+        fn join<RA, RB, A, B2>(
+            &self,
+            wa: &mut Self::Workspace,
+            wb: &mut Self::Workspace,
+            a: A,
+            b: B2,
+        ) -> (RA, RB)
+        where
+            RA: Send,
+            RB: Send,
+            A: FnOnce(&Self, &mut Self::Workspace) -> RA + Send,
+            B2: FnOnce(&Self, &mut Self::Workspace) -> RB + Send,
+        {
+            rayon::join(|| a(self, wa), || b(self, wb))
+        }
+    };
+}
+
 mod checks;
 mod circulant;
 mod circulant2d;

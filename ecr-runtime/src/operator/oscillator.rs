@@ -454,15 +454,7 @@ fn from_modal(v: &DMatrix<f64>, x: &[f64], out: &mut [f64]) {
 impl PhiBank for OscillatorBank {
     type Workspace = OscillatorWorkspace;
 
-    fn dim(&self) -> usize {
-        2 * self.n
-    }
-    fn len(&self) -> usize {
-        self.len
-    }
-    fn p(&self) -> usize {
-        self.p
-    }
+    bank_shape!(|b| 2 * b.n);
     fn workspace(&self) -> OscillatorWorkspace {
         let d = if self.basis.is_some() { 2 * self.n } else { 0 };
         OscillatorWorkspace {

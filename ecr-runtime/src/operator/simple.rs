@@ -94,16 +94,7 @@ impl Zero {
 impl PhiBank for ZeroBank {
     type Workspace = ();
 
-    fn dim(&self) -> usize {
-        self.dim
-    }
-    fn len(&self) -> usize {
-        self.len
-    }
-    fn p(&self) -> usize {
-        self.p
-    }
-    fn workspace(&self) {}
+    bank_shape!(|b| b.dim, unit);
 
     /// `out_j = y0 + Σ_k coef[j·m + k] v_{i,k+1} · g_k` (`v_{i,k} = 1/k!` in a φ-bank).
     fn combine(
@@ -257,16 +248,7 @@ impl Scalar {
 impl PhiBank for ScalarBank {
     type Workspace = ();
 
-    fn dim(&self) -> usize {
-        self.dim
-    }
-    fn len(&self) -> usize {
-        self.len
-    }
-    fn p(&self) -> usize {
-        self.p
-    }
-    fn workspace(&self) {}
+    bank_shape!(|b| b.dim, unit);
 
     fn combine(
         &self,

@@ -168,15 +168,7 @@ impl<B: SpectralBasis> SkewPairBank<B> {
 impl<B: SpectralBasis> PhiBank for SkewPairBank<B> {
     type Workspace = SkewPairWorkspace<B::Scratch>;
 
-    fn dim(&self) -> usize {
-        2 * self.n
-    }
-    fn len(&self) -> usize {
-        self.len
-    }
-    fn p(&self) -> usize {
-        self.p
-    }
+    bank_shape!(|b| 2 * b.n);
     fn workspace(&self) -> Self::Workspace {
         SkewPairWorkspace {
             spec: vec![Complex64::new(0.0, 0.0); (self.p + 1) * self.n],
@@ -250,21 +242,7 @@ impl<B: SpectralBasis> PhiBank for SkewPairBank<B> {
         );
     }
 
-    fn join<RA, RB, A, B2>(
-        &self,
-        wa: &mut Self::Workspace,
-        wb: &mut Self::Workspace,
-        a: A,
-        b: B2,
-    ) -> (RA, RB)
-    where
-        RA: Send,
-        RB: Send,
-        A: FnOnce(&Self, &mut Self::Workspace) -> RA + Send,
-        B2: FnOnce(&Self, &mut Self::Workspace) -> RB + Send,
-    {
-        rayon::join(|| a(self, wa), || b(self, wb))
-    }
+    concurrent_join!();
 
     /// `y0 + (increment through the basis)`, as for the circulant banks: with `u = p + iq`,
     /// `u0 + V ((e^{ihΛ} − I) V⁻¹ u0)`, added to y0 exactly (see [`PhiBank::propagate_dd`]).

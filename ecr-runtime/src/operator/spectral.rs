@@ -315,15 +315,7 @@ impl<B: SpectralBasis> SpectralBank<B> {
 impl<B: SpectralBasis> PhiBank for SpectralBank<B> {
     type Workspace = SpectralWorkspace<B::Scratch>;
 
-    fn dim(&self) -> usize {
-        self.basis.dim()
-    }
-    fn len(&self) -> usize {
-        self.len
-    }
-    fn p(&self) -> usize {
-        self.p
-    }
+    bank_shape!(|b| b.basis.dim());
     fn workspace(&self) -> Self::Workspace {
         let n = self.basis.dim();
         SpectralWorkspace {
@@ -392,21 +384,7 @@ impl<B: SpectralBasis> PhiBank for SpectralBank<B> {
         );
     }
 
-    fn join<RA, RB, A, B2>(
-        &self,
-        wa: &mut Self::Workspace,
-        wb: &mut Self::Workspace,
-        a: A,
-        b: B2,
-    ) -> (RA, RB)
-    where
-        RA: Send,
-        RB: Send,
-        A: FnOnce(&Self, &mut Self::Workspace) -> RA + Send,
-        B2: FnOnce(&Self, &mut Self::Workspace) -> RB + Send,
-    {
-        rayon::join(|| a(self, wa), || b(self, wb))
-    }
+    concurrent_join!();
 
     /// `y0 + V ((e^{hΛ} − I) V⁻¹ y0)`: the increment through f64 transforms, added to y0
     /// exactly (see [`PhiBank::propagate_dd`]).

@@ -164,15 +164,7 @@ impl Symmetric {
 impl PhiBank for SymmetricBank {
     type Workspace = SymmetricWorkspace;
 
-    fn dim(&self) -> usize {
-        self.dim
-    }
-    fn len(&self) -> usize {
-        self.len
-    }
-    fn p(&self) -> usize {
-        self.p
-    }
+    bank_shape!(|b| b.dim);
     fn workspace(&self) -> SymmetricWorkspace {
         SymmetricWorkspace {
             yhat: vec![0.0; self.dim],

@@ -56,20 +56,25 @@ fn normal(
     &q * b * q.transpose()
 }
 
+/// The nodes of the banks compared: c = 0, the three Gauss points of r = 3 and 1 (a step's), and
+/// a predictor's node beyond the step (1.5; the `StepExtended` banks only).
+const TAUS: [f64; 6] = [
+    0.0,
+    0.112_701_665_379_258_3,
+    0.5,
+    0.887_298_334_620_741_7,
+    1.0,
+    1.5,
+];
+
 /// The worst entry error of the f64 bank against the default one, relative to the largest
 /// entry of each matrix.
 fn worst(a: &DMatrix<f64>, h: f64) -> f64 {
     let op = Dense::new(a.clone()).unwrap();
-    let taus = [
-        0.0,
-        0.112_701_665_379_258_3,
-        0.5,
-        0.887_298_334_620_741_7,
-        1.0,
-    ];
+    let taus = &TAUS[..5];
     let n = 4;
-    let fast = op.kernel_bank_in(h, &taus, n, BankArithmetic::F64).unwrap();
-    let exact = op.kernel_bank(h, &taus, n).unwrap();
+    let fast = op.kernel_bank_in(h, taus, n, BankArithmetic::F64).unwrap();
+    let exact = op.kernel_bank(h, taus, n).unwrap();
     assert_eq!(fast.len(), exact.len());
     let mut worst = 0.0f64;
     for i in 0..taus.len() {
@@ -114,14 +119,7 @@ fn case(name: &str, a: DMatrix<f64>, h: f64, expect_normal: bool) {
 /// double-double propagator bit for bit the default bank's; at the other nodes within the f64
 /// route's bound of the nodes other than τ = 1 (or the default bank's where no route serves).
 fn step_extended(name: &str, op: &Dense, h: f64) {
-    let taus = [
-        0.0,
-        0.112_701_665_379_258_3,
-        0.5,
-        0.887_298_334_620_741_7,
-        1.0,
-        1.5,
-    ];
+    let taus = TAUS;
     let n = 4;
     let mixed = op
         .kernel_bank_in(h, &taus, n, BankArithmetic::StepExtended)
