@@ -53,8 +53,8 @@ pub(super) fn pilot(
     let max_step = ctx.options.max_step.min(span);
     let first = first_order(ctx, lo, hi);
     let mut h = (span / 8.0 / PILOT_STEPS as f64).min(max_step);
-    let mut tried: Vec<(usize, f64, f64)> = Vec::new();
-    let mut measure = |r: usize, h0: f64, stats: &mut Stats| -> Result<(f64, f64, bool)> {
+    let mut tried: Vec<Tried> = Vec::new();
+    let mut measure = |r: usize, h0: f64, stats: &mut Stats| -> Result<(f64, f64, bool, bool)> {
         let p = check_order(r);
         let mut h = h0;
         let mut runs = make(r, true, h)?;
@@ -147,20 +147,30 @@ pub(super) fn pilot(
             }
             h = next;
         }
-        let h = if good > 0.0 { good } else { h };
+        let found = good > 0.0;
+        let h = if found { good } else { h };
         // An estimate far below the target over the pilot says nothing of how the orders
         // compare (nothing happens there yet, or only rounding shows).
         let informative = seen > 1e-3 * TARGET;
-        Ok((h, per_step / h, informative))
+        // An order whose rounds found no step within the target has a cost per unit time only
+        // at a step never measured (the last prediction): it competes as infinitely dear
+        // while another order found one ([`Tried`]).
+        Ok((h, per_step / h, informative, found))
     };
-    let (h0, c0, informative) = measure(first, h, stats)?;
-    tried.push((first, h0, c0));
+    let (h0, c0, informative, found0) = measure(first, h, stats)?;
+    tried.push(Tried {
+        r: first,
+        h: h0,
+        cost: c0,
+        found: found0,
+    });
     if !informative {
         ctx.options
             .say(|| format!("pilot: the estimate says nothing yet → EC{first}P, h = {h0:.4e}"));
         return Ok((first, h0));
     }
     h = h0;
+    let c0 = tried[0].rank();
     // Up while the cost per unit time falls, then down.
     for dir in [1isize, -1] {
         let mut r = first;
@@ -174,28 +184,104 @@ pub(super) fn pilot(
             if stats.pilot_g_evals as f64 > PILOT_SHARE * best * span {
                 break;
             }
-            let (hr, cr, _) = measure(r, h, stats)?;
-            tried.push((r, hr, cr));
-            if cr >= best {
+            let (hr, cr, _, found) = measure(r, h, stats)?;
+            let t = Tried {
+                r,
+                h: hr,
+                cost: cr,
+                found,
+            };
+            tried.push(t);
+            if t.rank() >= best {
                 break;
             }
-            best = cr;
+            best = t.rank();
             h = hr;
         }
-        if tried.iter().any(|t| t.0 > first && t.2 < c0) {
+        if tried.iter().any(|t| t.r > first && t.rank() < c0) {
             break;
         }
     }
-    let &(r, h, _) = tried
-        .iter()
-        .min_by(|a, b| a.2.total_cmp(&b.2))
-        .expect("one order was tried");
+    let Tried { r, h, .. } = choose(&tried).expect("one order was tried");
     ctx.options.say(|| {
         let list: Vec<String> = tried
             .iter()
-            .map(|t| format!("r = {} h = {:.3e} cost {:.3e}", t.0, t.1, t.2))
+            .map(|t| {
+                let how = if t.found {
+                    ""
+                } else {
+                    " (no step within the target)"
+                };
+                format!("r = {} h = {:.3e} cost {:.3e}{how}", t.r, t.h, t.cost)
+            })
             .collect();
         format!("pilot: {} → EC{r}P, h = {h:.4e}", list.join("; "))
     });
     Ok((r, h))
+}
+
+/// The order the pilot returns: the cheapest that found a step within the target; where none
+/// did, the cheapest at its last prediction.
+fn choose(tried: &[Tried]) -> Option<Tried> {
+    let pick = |found: bool| {
+        tried
+            .iter()
+            .filter(|t| t.found || !found)
+            .min_by(|a, b| a.cost.total_cmp(&b.cost))
+            .copied()
+    };
+    pick(true).or_else(|| pick(false))
+}
+
+/// An order the pilot tried: the step it returns, the cost per unit time there (evaluations of
+/// g of both runs per unit time), and whether a round found that step within the target (else
+/// it is the last prediction, never measured).
+#[derive(Clone, Copy, Debug)]
+struct Tried {
+    r: usize,
+    h: f64,
+    cost: f64,
+    found: bool,
+}
+
+impl Tried {
+    /// The cost the orders are compared by: infinite where no step was found within the
+    /// target (the step was never measured: at a first order whose rounds all missed, Duffing
+    /// ω = 20 at 1e−3 chose EC4P at the unmeasured hω = 20, four times cheaper on paper than
+    /// the orders that found their steps, and its run started again twice).
+    fn rank(&self) -> f64 {
+        if self.found { self.cost } else { f64::INFINITY }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tried(r: usize, cost: f64, found: bool) -> Tried {
+        Tried {
+            r,
+            h: 1.0 / r as f64,
+            cost,
+            found,
+        }
+    }
+
+    /// An order whose step was never measured within the target loses to every order whose
+    /// step was, however cheap its last prediction looks, and wins only where no order found
+    /// one (the case of Duffing ω = 20 at 1e−4: EC4P at 39.5 unmeasured against EC5P at 154).
+    #[test]
+    fn an_unmeasured_step_does_not_win_against_a_measured_one() {
+        let list = [
+            tried(4, 39.5, false),
+            tried(5, 154.0, true),
+            tried(3, 151.0, true),
+        ];
+        assert_eq!(choose(&list).map(|t| t.r), Some(3));
+        let none = [tried(4, 39.5, false), tried(5, 154.0, false)];
+        assert_eq!(choose(&none).map(|t| t.r), Some(4));
+        assert!(choose(&[]).is_none());
+        assert_eq!(tried(4, 39.5, false).rank(), f64::INFINITY);
+        assert_eq!(tried(5, 154.0, true).rank(), 154.0);
+    }
 }
