@@ -163,9 +163,9 @@ impl DenseBank {
     ) {
         for ((j, i), o) in indices.enumerate().zip(out.chunks_exact_mut(d)) {
             let base = i * (self.p + 1);
-            gemv_cm(o, 1.0, self.slot(base), y0, false);
+            gemv_scaled(o, 1.0, self.slot(base), y0, false);
             for (k, gk) in g.chunks_exact(d).enumerate() {
-                gemv_cm(o, coef[j * m + k], self.slot(base + k + 1), gk, true);
+                gemv_scaled(o, coef[j * m + k], self.slot(base + k + 1), gk, true);
             }
         }
     }
@@ -184,9 +184,11 @@ fn copy_matrices(ms: &[DMatrix<f64>], out: &mut [f64]) {
 /// `y = α M x + β y` for the column-major `rows × x.len()` matrix `m`, β 0 or 1, with
 /// nalgebra's `gemv` rounding (each column's `(α m_rc) x_c` added in column order): the same
 /// bits as the bank's matrices had when they were `DMatrix` values, without its set-up per
-/// call (a bank of a 2 × 2 operator applies ~50 of them per sweep).
+/// call (a bank of a 2 × 2 operator applies ~50 of them per sweep). The fused step's
+/// [`gemv_cm`](crate::stepper::gemv_cm) has no α: `α (m x)` rounds otherwise than `(α m) x`,
+/// and the fixed path's golden files record the latter.
 #[inline(always)]
-fn gemv_cm(y: &mut [f64], alpha: f64, m: &[f64], x: &[f64], beta_one: bool) {
+fn gemv_scaled(y: &mut [f64], alpha: f64, m: &[f64], x: &[f64], beta_one: bool) {
     let rows = y.len();
     for (c, (&xc, col)) in x.iter().zip(m.chunks_exact(rows)).enumerate() {
         if c == 0 && !beta_one {
@@ -403,7 +405,7 @@ impl PhiBank for DenseBank {
     fn apply(&self, i: usize, k: usize, x: &[f64], out: &mut [f64], _ws: &mut ()) {
         apply_shape(self.dim, self.len, self.p, i, k, x, out);
         if self.dim > 0 {
-            gemv_cm(out, 1.0, self.slot(i * (self.p + 1) + k), x, false);
+            gemv_scaled(out, 1.0, self.slot(i * (self.p + 1) + k), x, false);
         }
     }
 }

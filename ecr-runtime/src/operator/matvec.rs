@@ -20,9 +20,8 @@ pub(super) fn matvec_dd<R, C, S>(
     C: nalgebra::Dim,
     S: nalgebra::RawStorage<f64, R, C> + nalgebra::IsContiguous,
 {
-    let (rows, cols) = mh.shape();
-    assert!(ml.shape() == (rows, cols) && x.len() == cols && hi.len() == rows && lo.len() == rows);
-    matvec_dd_cm(rows, (mh.as_slice(), ml.as_slice()), x, (hi, lo));
+    assert!(ml.shape() == mh.shape() && hi.len() == mh.nrows() && x.len() == mh.ncols());
+    matvec_dd_slices(mh.as_slice(), ml.as_slice(), x, hi, lo);
 }
 
 /// [`matvec_dd`] on column-major slices (`mh`, `ml`: `hi.len() × x.len()`).

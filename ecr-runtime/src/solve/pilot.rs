@@ -54,7 +54,7 @@ pub(super) fn pilot(
     let first = first_order(ctx, lo, hi);
     let mut h = (span / 8.0 / PILOT_STEPS as f64).min(max_step);
     let mut tried: Vec<Tried> = Vec::new();
-    let mut measure = |r: usize, h0: f64, stats: &mut Stats| -> Result<(f64, f64, bool, bool)> {
+    let mut measure = |r: usize, h0: f64, stats: &mut Stats| -> Result<(Tried, bool)> {
         let p = check_order(r);
         let mut h = h0;
         let mut runs = make(r, true, h)?;
@@ -155,22 +155,19 @@ pub(super) fn pilot(
         // An order whose rounds found no step within the target has a cost per unit time only
         // at a step never measured (the last prediction): it competes as infinitely dear
         // while another order found one ([`Tried`]).
-        Ok((h, per_step / h, informative, found))
+        let cost = per_step / h;
+        Ok((Tried { r, h, cost, found }, informative))
     };
-    let (h0, c0, informative, found0) = measure(first, h, stats)?;
-    tried.push(Tried {
-        r: first,
-        h: h0,
-        cost: c0,
-        found: found0,
-    });
+    let (t0, informative) = measure(first, h, stats)?;
+    let h0 = t0.h;
+    tried.push(t0);
     if !informative {
         ctx.options
             .say(|| format!("pilot: the estimate says nothing yet → EC{first}P, h = {h0:.4e}"));
         return Ok((first, h0));
     }
     h = h0;
-    let c0 = tried[0].rank();
+    let c0 = t0.rank();
     // Up while the cost per unit time falls, then down.
     for dir in [1isize, -1] {
         let mut r = first;
@@ -184,19 +181,13 @@ pub(super) fn pilot(
             if stats.pilot_g_evals as f64 > PILOT_SHARE * best * span {
                 break;
             }
-            let (hr, cr, _, found) = measure(r, h, stats)?;
-            let t = Tried {
-                r,
-                h: hr,
-                cost: cr,
-                found,
-            };
+            let (t, _) = measure(r, h, stats)?;
             tried.push(t);
             if t.rank() >= best {
                 break;
             }
             best = t.rank();
-            h = hr;
+            h = t.h;
         }
         if tried.iter().any(|t| t.r > first && t.rank() < c0) {
             break;
