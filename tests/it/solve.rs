@@ -329,6 +329,55 @@ fn pilots_cost_less_than_the_run() {
     }
 }
 
+/// A pilot round never measures again a step it measured for the same order: where the stage
+/// iteration fails above a step measured within the target (stiff_g, λ large, at 1e−3: EC5P
+/// fails at h = 0.0113 above 0.0057), the rounds end with that step; they used to go down to
+/// h / 4 and climb back to the step measured before (26 % of this solve's g were pilots, 33 %
+/// before).
+#[test]
+fn a_pilot_measures_no_step_twice() {
+    use std::sync::{Arc, Mutex};
+    let case = crate::common_suite::odes::stiff_in_g();
+    let lines = Arc::new(Mutex::new(Vec::<String>::new()));
+    let sink = Arc::clone(&lines);
+    let options = Options::tolerance(1e-3).trace(move |l| sink.lock().unwrap().push(l.to_owned()));
+    let sol = case.solve(options).expect("stiff_g at 1e-3 is verified");
+    let lines = lines.lock().unwrap();
+    let lines: Vec<&str> = lines
+        .iter()
+        .filter_map(|l| l.strip_prefix("solve: pilot EC"))
+        .collect();
+    // "pilot EC5P round 2: h = 2.8297e-3, 8 steps, ..." and "pilot EC5P h = ...: a step failed".
+    let mut seen = std::collections::BTreeSet::new();
+    let mut failures = 0;
+    for l in &lines {
+        failures += usize::from(l.contains("a step failed"));
+        let Some((order, rest)) = l.split_once(' ') else {
+            continue;
+        };
+        let Some(h) = rest
+            .split("h = ")
+            .nth(1)
+            .and_then(|s| s.split([',', ':']).next())
+        else {
+            continue;
+        };
+        if l.contains(" round ") {
+            assert!(
+                seen.insert((order.to_owned(), h.to_owned())),
+                "measured twice: {l}"
+            );
+        }
+    }
+    assert!(
+        failures > 0,
+        "the case no longer has a failing pilot step: {lines:?}"
+    );
+    let share = sol.stats.pilot_g_evals as f64 / sol.stats.total_g_evals() as f64;
+    eprintln!("stiff_g 1e-3: pilots {:.1} % of all g", 100.0 * share);
+    assert!(share <= 0.30, "pilots {share}");
+}
+
 /// A terminal event at t = 2.25 in a span of 10⁴ ends the work: everything the solve
 /// evaluates (pilots, checks, discarded tries) stays within a small multiple of what a
 /// verified run to t = 2.25 alone costs.

@@ -84,6 +84,13 @@ pub(super) fn pilot(
                             f.t, f.error
                         )
                     });
+                    // A step that fails above one measured within the target ends the rounds
+                    // with that one: the steps below it would be measured again on the way up,
+                    // and a step just below where the stage iteration fails at t₀ may fail
+                    // later in the run.
+                    if good > 0.0 {
+                        break;
+                    }
                     h /= 4.0;
                     if h < resolution(ctx.t0.abs().max(ctx.t_end.abs())) {
                         return Err(f.error);
@@ -142,7 +149,8 @@ pub(super) fn pilot(
             // The run this pilot projects, both runs over the span at the best step measured.
             let spent = stats.pilot_g_evals as f64;
             let over_budget = good > 0.0 && spent > PILOT_SHARE * per_step * span / good;
-            if closed || next == h || over_budget {
+            // A step measured already (the best one) says nothing new.
+            if closed || next == h || next == good || over_budget {
                 break;
             }
             h = next;
