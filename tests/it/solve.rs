@@ -332,7 +332,7 @@ fn pilots_cost_less_than_the_run() {
 /// A pilot round never measures again a step it measured for the same order: where the stage
 /// iteration fails above a step measured within the target (stiff_g, λ large, at 1e−3: EC5P
 /// fails at h = 0.0113 above 0.0057), the rounds end with that step; they used to go down to
-/// h / 4 and climb back to the step measured before (26 % of this solve's g were pilots, 33 %
+/// h / 4 and climb back to the step measured before (27 % of this solve's g were pilots, 33 %
 /// before).
 #[test]
 fn a_pilot_measures_no_step_twice() {
