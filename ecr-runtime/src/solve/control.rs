@@ -506,7 +506,15 @@ pub(super) fn run(
         if failure.as_ref().is_some_and(|f| last.t > f.0) {
             failure = None;
         }
-        let worst = worst.max(yielded.between);
+        // The run's estimate is its grid's: the values between grid points (outputs, events)
+        // were each checked against the limit above and are in the record with their own
+        // estimates, but they do not set the level. An interpolated output carries its
+        // interpolant's estimate (up to half a tolerance, often several times the grid's
+        // there); taken into the run's estimate, it hid the growth of the grid's from the
+        // level's projection, and the run went on at its first level until an output reached
+        // the tolerance (Duffing ω = 20, 1e−8, 4000 outputs: 656 windows integrated again and
+        // a start again from t₀, 2.3 times the evaluations of g of the same solve without
+        // outputs).
         state = State {
             t: yielded.terminal.map_or(last.t, |(_, t)| t),
             t_lo: if yielded.terminal.is_some() {
