@@ -121,18 +121,29 @@ impl DenseBank {
         &self.phis[m * dd..(m + 1) * dd]
     }
 
-    /// A bank of `len` nodes whose matrices `fill(i, out)` writes node by node (`out` the
+    /// A bank of the nodes `taus` whose matrices `fill(i, out)` writes node by node (`out` the
     /// `(p + 1) d²` numbers of node i), returning the low part of its propagator if carried.
     fn build(
         dim: usize,
-        len: usize,
+        taus: &[f64],
         p: usize,
         mut fill: impl FnMut(usize, &mut [f64]) -> Result<Option<DMatrix<f64>>>,
     ) -> Result<DenseBank> {
+        let len = taus.len();
         let per = (p + 1) * dim * dim;
         let mut phis = vec![0.0; len * per];
-        let mut lo = Vec::with_capacity(len);
+        let mut lo: Vec<Option<DMatrix<f64>>> = Vec::with_capacity(len);
         for i in 0..len {
+            // A node met again (the step's end τ = 1 after a Lobatto rule's last node) is the
+            // same computation: copied, not repeated.
+            if let Some(j) = taus[..i]
+                .iter()
+                .rposition(|&t| t.to_bits() == taus[i].to_bits())
+            {
+                phis.copy_within(j * per..(j + 1) * per, i * per);
+                lo.push(lo[j].clone());
+                continue;
+            }
             lo.push(fill(i, &mut phis[i * per..(i + 1) * per])?);
         }
         Ok(DenseBank {
@@ -292,7 +303,7 @@ impl Dense {
 
     fn bank(&self, h: f64, taus: &[f64], p: usize, f: NodeFunctions) -> Result<DenseBank> {
         self.check_bank(h, taus, p)?;
-        DenseBank::build(self.a.nrows(), taus.len(), p, |i, out| {
+        DenseBank::build(self.a.nrows(), taus, p, |i, out| {
             let (m, l) = self.default_node(&f, i, taus[i] * h, p, true)?;
             copy_matrices(&m, out);
             Ok(l)
@@ -317,7 +328,7 @@ impl Dense {
         let tmax = others.fold(0.0f64, |m, t| m.max(t.abs()));
         let route = form.route(tmax * h);
         let mut scratch = NodeScratch::default();
-        DenseBank::build(self.a.nrows(), taus.len(), p, |i, out| match route {
+        DenseBank::build(self.a.nrows(), taus, p, |i, out| match route {
             Some((normal, _)) if taus[i] != 1.0 => {
                 form.node_into(&self.a, &f, i, taus[i] * h, p, normal, out, &mut scratch)?;
                 Ok(None)
@@ -340,7 +351,7 @@ impl Dense {
             return self.bank(h, taus, p, f);
         };
         let mut scratch = NodeScratch::default();
-        DenseBank::build(d, taus.len(), p, |i, out| {
+        DenseBank::build(d, taus, p, |i, out| {
             form.node_into(&self.a, &f, i, taus[i] * h, p, normal, out, &mut scratch)?;
             Ok(None)
         })

@@ -146,7 +146,10 @@ fn accumulate_rows<const N: usize>(
 
 /// The combine coefficients of a kernel bank: `h τ (2j+1)` for each node τ and j < r.
 pub(super) fn kernel_coefficients(h: f64, taus: &[f64], r: usize) -> Vec<f64> {
-    taus.iter()
-        .flat_map(|&t| (0..r).map(move |j| h * t * (2 * j + 1) as f64))
-        .collect()
+    // Sized once (a flat_map's collect grows its vector step by step).
+    let mut coef = Vec::with_capacity(taus.len() * r);
+    for &t in taus {
+        coef.extend((0..r).map(|j| h * t * (2 * j + 1) as f64));
+    }
+    coef
 }
