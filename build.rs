@@ -8,6 +8,8 @@
 //! process CPU and 175 → 149 page faults, Duffing, one step; `perf stat -r 60`). The only
 //! thing given up is address-space randomisation of the executable's own image (libraries,
 //! heap and stack are still randomised); the library crates and the tests are not affected.
+//! Built with a static C runtime (docs/cli.md, "Start-up") the executable is left as rustc
+//! links it.
 //!
 //! The peer, `benches/c/rotation_splitting_duffing.c`, is compiled at `-O2` whatever the
 //! profile (the benchmark and the tests time and run it) and with `-ffp-contract=off`: the
@@ -18,7 +20,14 @@
 fn main() {
     println!("cargo:rerun-if-changed=build.rs");
     let var = |name| std::env::var(name).unwrap_or_default();
-    if var("CARGO_CFG_TARGET_OS") == "linux" && var("CARGO_CFG_TARGET_ENV") == "gnu" {
+    // Not with a static C runtime (`-C target-feature=+crt-static`, docs/cli.md): rustc links
+    // that as a static position-independent executable, and `-no-pie` on top of it gave a
+    // binary that died of a segmentation fault when run (2026-12-02).
+    let static_crt = var("CARGO_CFG_TARGET_FEATURE")
+        .split(',')
+        .any(|f| f == "crt-static");
+    if var("CARGO_CFG_TARGET_OS") == "linux" && var("CARGO_CFG_TARGET_ENV") == "gnu" && !static_crt
+    {
         println!("cargo:rustc-link-arg-bin=ecr=-no-pie");
     }
     #[cfg(feature = "cli")]

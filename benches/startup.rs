@@ -8,8 +8,9 @@
 //! cargo bench --bench startup -- /tmp/empty target/release/ecr
 //! ```
 //!
-//! The `ecr` command timed: `ecr run --problem duffing --omega 20 --r 6 --h 0.1 --t-end 0.1`
-//! (EC6P, one step of h = 0.1: one 2 × 2 kernel bank of 13 nodes), output to /dev/null.
+//! The `ecr` command timed: `ecr run --problem duffing --t-end 0.1 --r 3 --h 0.1` (EC3P, one
+//! step of h = 0.1 on Duffing with its default ω = 5, a 2 × 2 operator), output to
+//! /dev/null. Give the statically linked executable of docs/cli.md as ECR_BINARY to time that.
 
 use std::process::{Command, Stdio};
 use std::time::Instant;
