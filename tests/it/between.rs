@@ -237,3 +237,62 @@ fn events_cost_little() {
         );
     }
 }
+
+/// Many outputs do not steer the run: on Duffing ω = 20 over T = 1000 (dense 2 × 2 linear
+/// part) the solve with 4000 uneven `t_eval` takes the grid of the solve without them, step
+/// for step, and every output is within the tolerance of the exact solution's neighbour, a
+/// solve 100 times tighter. Before 1028f22 the interpolated outputs' estimates (up to half a
+/// tolerance, several times the grid's) entered the run's estimate and hid its growth from the
+/// level: at 1e−8 the run went on at its first level until an output reached the tolerance,
+/// then integrated 656 windows again and started again from t₀ (2.3 times the evaluations
+/// of g); at 1e−6, 1034 windows.
+#[test]
+fn many_outputs_do_not_change_the_grid() {
+    let (w, k) = (20.0f64, 0.07);
+    let a = Dense::new(DMatrix::from_row_slice(
+        2,
+        2,
+        &[0.0, 1.0, -(w * w + k * k), 0.0],
+    ))
+    .unwrap();
+    let g = move |y: &[f64], o: &mut [f64]| {
+        o[0] = 0.0;
+        o[1] = 2.0 * k * k * y[0] * y[0] * y[0];
+    };
+    let problem = Problem::new(Semilinear::new(a, g), [0.0, w], (0.0, 1000.0)).unwrap();
+    let times = uneven(0.0, 1000.0, 4000);
+    for tol in [1e-6, 1e-8] {
+        let plain = problem.solve(&Options::tolerance(tol)).unwrap();
+        let sol = problem
+            .solve(&Options::tolerance(tol).t_eval(times.clone()))
+            .unwrap();
+        let (p, s) = (plain.stats, sol.stats);
+        eprintln!("tol {tol:e}: plain {p:?}\n  with t_eval {s:?}");
+        assert_eq!(
+            (
+                s.steps,
+                s.g_evals,
+                s.check_g_evals,
+                s.retries,
+                s.discarded_g_evals
+            ),
+            (p.steps, p.g_evals, p.check_g_evals, 0, 0),
+            "tol {tol:e}: the outputs changed the run"
+        );
+        assert_eq!(sol.segments.len(), plain.segments.len());
+        let fine = problem
+            .solve(&Options::tolerance(tol / 100.0).t_eval(times.clone()))
+            .unwrap();
+        let worst = sol
+            .y
+            .iter()
+            .zip(&fine.y)
+            .map(|(a, b)| units(a, b, tol))
+            .fold(0.0, f64::max);
+        eprintln!("  worst output {worst:.3} tolerances");
+        assert!(
+            worst <= 1.0,
+            "tol {tol:e}: an output {worst:.3} tolerances off"
+        );
+    }
+}
