@@ -244,8 +244,7 @@ fn events_cost_little() {
 /// solve 100 times tighter. Before 1028f22 the interpolated outputs' estimates (up to half a
 /// tolerance, several times the grid's) entered the run's estimate and hid its growth from the
 /// level: at 1e−8 the run went on at its first level until an output reached the tolerance,
-/// then integrated 656 windows again and started again from t₀ (2.3 times the evaluations
-/// of g); at 1e−6, 1034 windows.
+/// then integrated 656 windows again and started again from t₀; at 1e−6, 1034 windows.
 #[test]
 fn many_outputs_do_not_change_the_grid() {
     let (w, k) = (20.0f64, 0.07);

@@ -513,8 +513,7 @@ pub(super) fn run(
         // there); taken into the run's estimate, it hid the growth of the grid's from the
         // level's projection, and the run went on at its first level until an output reached
         // the tolerance (Duffing ω = 20, 1e−8, 4000 outputs: 656 windows integrated again and
-        // a start again from t₀, 2.3 times the evaluations of g of the same solve without
-        // outputs).
+        // a start again from t₀, 228 ms where the plain solve's grid now serves in 57).
         state = State {
             t: yielded.terminal.map_or(last.t, |(_, t)| t),
             t_lo: if yielded.terminal.is_some() {
