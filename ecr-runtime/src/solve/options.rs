@@ -147,7 +147,8 @@ impl Options {
     /// do not become grid points: a value between grid points comes from the grid's interpolant
     /// or from one step of the answer (and of its check, for its estimate) from the grid point
     /// before it. A value whose estimate is above the tolerance makes its window integrated
-    /// again with smaller steps, so output times can change the steps.
+    /// again with smaller steps, so output times can change the steps; where every value is
+    /// within the tolerance the run takes the steps it takes without them.
     #[must_use]
     pub fn t_eval(mut self, times: impl IntoIterator<Item = f64>) -> Self {
         self.t_eval = Some(times.into_iter().collect());
