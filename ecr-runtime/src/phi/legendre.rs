@@ -355,15 +355,13 @@ impl LegendreKernels {
         let t1 = (xm * x).scale(self.first[m0 + 1]);
         let mut term = [t0, t1];
         let mut sum = term;
-        let ratio = [
-            &self.ratio[m0 * TAYLOR_TERMS..(m0 + 1) * TAYLOR_TERMS],
-            &self.ratio[(m0 + 1) * TAYLOR_TERMS..(m0 + 2) * TAYLOR_TERMS],
-        ];
+        let first = &self.ratio[m0 * TAYLOR_TERMS..(m0 + 1) * TAYLOR_TERMS];
+        let second = &self.ratio[(m0 + 1) * TAYLOR_TERMS..(m0 + 2) * TAYLOR_TERMS];
         let mut done = [false; 2];
-        for j in 0..TAYLOR_TERMS {
-            for q in 0..2 {
+        for (&a, &b) in first.iter().zip(second) {
+            for (q, ratio) in [a, b].into_iter().enumerate() {
                 if !done[q] {
-                    term[q] = (term[q] * x).scale(ratio[q][j]);
+                    term[q] = (term[q] * x).scale(ratio);
                     sum[q] = sum[q] + term[q];
                     done[q] = term[q].modulus_le(TAYLOR_TOL, sum[q]);
                 }
