@@ -8,8 +8,8 @@
 //! process CPU and 175 → 149 page faults, Duffing, one step; `perf stat -r 60`). The only
 //! thing given up is address-space randomisation of the executable's own image (libraries,
 //! heap and stack are still randomised); the library crates and the tests are not affected.
-//! Built with a static C runtime (docs/cli.md, "Start-up") the executable is left as rustc
-//! links it.
+//! Built with a static C runtime (docs/cli.md, its opening section) the executable is left
+//! as rustc links it.
 //!
 //! The peer, `benches/c/rotation_splitting_duffing.c`, is compiled at `-O2` whatever the
 //! profile (the benchmark and the tests time and run it) and with `-ffp-contract=off`: the

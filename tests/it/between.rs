@@ -240,8 +240,8 @@ fn events_cost_little() {
 
 /// Many outputs do not steer the run: on Duffing ω = 20 over T = 1000 (dense 2 × 2 linear
 /// part) the solve with 4000 uneven `t_eval` takes the grid of the solve without them, step
-/// for step, and every output is within the tolerance of the exact solution's neighbour, a
-/// solve 100 times tighter. Before 1028f22 the interpolated outputs' estimates (up to half a
+/// for step, and every output is within the tolerance of the same output of a solve 100
+/// times tighter. Before 1028f22 the interpolated outputs' estimates (up to half a
 /// tolerance, several times the grid's) entered the run's estimate and hid its growth from the
 /// level: at 1e−8 the run went on at its first level until an output reached the tolerance,
 /// then integrated 656 windows again and started again from t₀; at 1e−6, 1034 windows.
