@@ -22,6 +22,24 @@ pub(super) fn between(
     source: Source<'_>,
     cost: &mut Cost,
 ) -> Result<Point> {
+    between_into(ctx, runs, base, n, t, trail, source, None, cost)
+}
+
+/// [`between`], and the check's value at t into `check` where given (with [`Source::Steps`]:
+/// the check's step, or the grid's check moved along the field where t is within the rounding
+/// of the grid point's time).
+#[allow(clippy::too_many_arguments)]
+pub(super) fn between_into(
+    ctx: &Ctx<'_>,
+    runs: &mut dyn Runs,
+    base: &GridPoint,
+    n: usize,
+    t: f64,
+    trail: Option<&mut Trail>,
+    source: Source<'_>,
+    check: Option<&mut [f64]>,
+    cost: &mut Cost,
+) -> Result<Point> {
     let d = base.answer.len();
     let tolerance = (ctx.options.rtol, ctx.options.atol);
     let mut interp = None;
@@ -47,7 +65,7 @@ pub(super) fn between(
             (trail.grid(d), stencil, sa, sc)
         }),
         &mut RunSteps(runs, cost),
-        &mut y,
+        (&mut y, check),
     )?;
     Ok(Point { t, y, est })
 }
@@ -147,12 +165,13 @@ impl PartialSteps for RunSteps<'_> {
 /// moved along the field (`drift`) where t is within the rounding of it; the interpolant of
 /// the grid where its estimate is at most [`INTERP_MAX`] tolerances; else one partial step of
 /// each run from the grid point ([`PartialSteps`]), whose difference is the estimate. The
-/// value goes to `out`; returns its estimate in tolerances.
+/// value goes to `out.0` (and the check's, where it is stepped or moved, to `out.1` where
+/// given); returns its estimate in tolerances.
 pub(super) fn value_between(
     at: ValueAt<'_>,
     interp: Option<Interp<'_>>,
     steps: &mut dyn PartialSteps,
-    out: &mut [f64],
+    (out, check_out): (&mut [f64], Option<&mut [f64]>),
 ) -> Result<f64> {
     let ValueAt {
         t,
@@ -165,6 +184,10 @@ pub(super) fn value_between(
     } = at;
     let dt = t - t_base;
     out.copy_from_slice(answer);
+    let mut check_out = check_out;
+    if let Some(c) = check_out.as_deref_mut() {
+        c.copy_from_slice(check);
+    }
     if dt <= 0.0 {
         return Ok(est);
     }
@@ -172,6 +195,9 @@ pub(super) fn value_between(
         || dt <= crate::integrate::StepPlan::TIME_ULPS * f64::EPSILON * t.abs()
     {
         steps.drift(out, dt)?;
+        if let Some(c) = check_out {
+            steps.drift(c, dt)?;
+        }
         return Ok(est);
     }
     // The interpolant of the grid where its estimate holds (no step, no φ-bank); where it
@@ -200,6 +226,9 @@ pub(super) fn value_between(
     steps.partial((answer, check), dt, (out, &mut yc), seed, which)?;
     if let Source::Check(given) = source {
         out.copy_from_slice(given);
+    }
+    if let Some(c) = check_out.filter(|_| which != Which::Answer) {
+        c.copy_from_slice(&yc);
     }
     if !verified || which == Which::Answer {
         return Ok(0.0);

@@ -1,9 +1,9 @@
 //! Events: the zeros of user functions e(t, y), located on the continuous solution: first on
 //! the grid's interpolant, then, where it does not serve, on the runs' steps ([`hit`]).
 
-use super::between::{INTERP_MAX, Source, Trail, between};
+use super::between::{INTERP_MAX, Source, Trail, between, between_into};
 use super::record::Point;
-use super::runs::{Cost, Runs};
+use super::runs::{Cost, Runs, estimate};
 use super::window::{Ctx, GridPoint};
 use crate::error::{Error, Result};
 
@@ -183,16 +183,20 @@ const STEPS_ULPS: f64 = 64.0;
 /// Each evaluation on the solution is a value between grid points ([`between`]), which costs a
 /// step of each run where the interpolant does not serve. So the zero is first located on the
 /// grid's interpolant (no evaluation of g beyond its slopes). Where the interpolant serves the
-/// value there (its estimate within [`INTERP_MAX`]), that is the zero and its value. Else the
-/// zero is searched on the answer's steps alone (one source for every value of the search: a
-/// function that switched between the interpolant and the steps would jump by up to their
-/// difference, and the search would creep at the jump; the check's step is taken only at the
-/// zero found, for the estimate of the value returned): the steps are taken at the
-/// interpolant's zero and a little beyond it on the side the interpolant's slope predicts
-/// (twice the Newton correction), a bracket a few interpolation errors wide in most cases,
-/// which regula falsi closes in two or three more values; where those points do not bracket
-/// the zero, the search goes on from the tightest bracket they left, to [`STEPS_ULPS`] units
-/// of roundoff of t. Either way the value returned is the one at the zero's time.
+/// value there (its estimate within [`INTERP_MAX`]), that is the zero and its value. Else both
+/// runs step to the interpolant's zero t₀, and their values there are moved along the field
+/// to the zero nearby ([`moved_zero`]: a second-order Taylor polynomial of each run, from
+/// three evaluations of g each, its distance from the flow bounded a posteriori and added to
+/// the estimate). Where the move does not apply (the zero too far from t₀ for the polynomial),
+/// the zero is searched on the answer's steps alone (one source for every value of the
+/// search: a function that switched between the interpolant and the steps would jump by up to
+/// their difference, and the search would creep at the jump; the check's step is taken only at
+/// the zero found, for the estimate of the value returned): from t₀ and a little beyond it on
+/// the side the interpolant's slope predicts (twice the Newton correction), a bracket a few
+/// interpolation errors wide in most cases, which regula falsi closes in two or three more
+/// values; where those points do not bracket the zero, the search goes on from the tightest
+/// bracket they left, to [`STEPS_ULPS`] units of roundoff of t. Either way the value returned
+/// is the one at the zero's time.
 ///
 /// # Errors
 /// What [`between`] and the event function report.
@@ -244,9 +248,90 @@ pub(super) fn hit(
             guess = Some((t0, slope));
         }
     }
+    let (mut lo, mut hi) = ((prev.t, before), (p.t, after));
+    // The values of the search on the steps, and the first of them (with the slope there).
+    let mut seen: Vec<Point> = Vec::new();
+    let mut first = None;
+    let narrow = |(t, e): (f64, f64), lo: &mut (f64, f64), hi: &mut (f64, f64)| {
+        if t > lo.0 && t < hi.0 {
+            if (e < 0.0) == (lo.1 < 0.0) && e != 0.0 {
+                *lo = (t, e);
+            } else {
+                *hi = (t, e);
+            }
+        }
+    };
+    if let Some((t0, slope)) = guess {
+        if t0 > lo.0 && t0 < hi.0 {
+            // The answer at the interpolant's zero; where the zero on the steps is that close
+            // to it that the field's Taylor polynomial from there reaches it, the check there
+            // too, and no more steps.
+            let v = between(
+                ctx,
+                runs,
+                prev,
+                n,
+                t0,
+                trail.as_deref_mut(),
+                Source::Answer,
+                cost,
+            )?;
+            let e0 = event.value(k, t0, &v.y)?;
+            let near = Near {
+                t0,
+                e0,
+                slope,
+                bracket: (lo.0, hi.0),
+            };
+            if e0 == 0.0 {
+                let source = if ctx.verified {
+                    Source::Check(&v.y)
+                } else {
+                    Source::Answer
+                };
+                return between(ctx, runs, prev, n, t0, trail, source, cost);
+            }
+            // A move that fails (g or the event function not finite off the solution, where
+            // the Euler point lies) leaves the search on the steps, which reports what is
+            // wrong on the solution itself.
+            let taylor = |runs: &mut dyn Runs, y: &[f64], cost: &mut Cost| match correction(&near) {
+                Some(delta) => Taylor::new(runs, y, delta, cost).ok().flatten(),
+                None => None,
+            };
+            if let Some(pa) = taylor(runs, &v.y, cost) {
+                let mut yc = vec![0.0; d];
+                let check = if ctx.verified {
+                    between_into(
+                        ctx,
+                        runs,
+                        prev,
+                        n,
+                        t0,
+                        trail.as_deref_mut(),
+                        Source::Check(&v.y),
+                        Some(&mut yc),
+                        cost,
+                    )?;
+                    taylor(runs, &yc, cost)
+                } else {
+                    None
+                };
+                if ctx.verified == check.is_some() {
+                    let check = check.as_ref().map(|pc| (&yc[..], pc));
+                    let moved =
+                        moved_zero(ctx, runs, (k, event), &near, (&v.y, &pa), check, n, cost);
+                    if let Ok(Some(point)) = moved {
+                        return Ok(point);
+                    }
+                }
+            }
+            seen.push(v);
+            narrow((t0, e0), &mut lo, &mut hi);
+            first = Some((t0, e0, slope));
+        }
+    }
     // The search's values: the answer's steps alone (the check's is needed only where it
     // stops), kept for that one.
-    let mut seen: Vec<Point> = Vec::new();
     let mut on_steps = |t: f64, seen: &mut Vec<Point>| -> Result<f64> {
         let v = between(
             ctx,
@@ -262,25 +347,11 @@ pub(super) fn hit(
         seen.push(v);
         Ok(e)
     };
-    let (mut lo, mut hi) = ((prev.t, before), (p.t, after));
-    let narrow = |(t, e): (f64, f64), lo: &mut (f64, f64), hi: &mut (f64, f64)| {
-        if t > lo.0 && t < hi.0 {
-            if (e < 0.0) == (lo.1 < 0.0) && e != 0.0 {
-                *lo = (t, e);
-            } else {
-                *hi = (t, e);
-            }
-        }
-    };
-    if let Some((t0, slope)) = guess {
-        if t0 > lo.0 && t0 < hi.0 {
-            let e0 = on_steps(t0, &mut seen)?;
-            narrow((t0, e0), &mut lo, &mut hi);
-            let t1 = t0 - 2.0 * e0 / slope;
-            if e0 != 0.0 && t1 > lo.0 && t1 < hi.0 && t1 != t0 {
-                let e1 = on_steps(t1, &mut seen)?;
-                narrow((t1, e1), &mut lo, &mut hi);
-            }
+    if let Some((t0, e0, slope)) = first {
+        let t1 = t0 - 2.0 * e0 / slope;
+        if e0 != 0.0 && t1 > lo.0 && t1 < hi.0 && t1 != t0 {
+            let e1 = on_steps(t1, &mut seen)?;
+            narrow((t1, e1), &mut lo, &mut hi);
         }
     }
     let t_hit = if hi.1 == 0.0 {
@@ -295,6 +366,182 @@ pub(super) fn hit(
         None => Source::Steps,
     };
     between(ctx, runs, prev, n, t_hit, trail, source, cost)
+}
+
+/// Where the search on the runs' steps starts: the interpolant's zero t₀, the event function
+/// on the answer's step there, the event's slope on the interpolant, the step's bracket.
+struct Near {
+    t0: f64,
+    e0: f64,
+    slope: f64,
+    bracket: (f64, f64),
+}
+
+/// The Taylor polynomial of a run's value is used only where its quadratic term changes the
+/// slope by at most this share over the move (so its cubic term is smaller still by about as
+/// much: the residual's bound of what it leaves is then its leading term).
+const MOVE_BEND: f64 = 0.05;
+
+/// What a move may add to a value's estimate, in tolerances (beyond it the search goes on on
+/// the steps, whose values carry no such term).
+const MOVE_REST: f64 = 0.05;
+
+/// A run's second-order Taylor polynomial `Y(s) = y + s f + ½ s² f'` at its value y at t₀:
+/// the slope f = Ay + g(y) there and half the slope's change per unit time, f' from the slope
+/// at the Euler point of the Newton correction δ (two evaluations of g). `None` where the
+/// Newton correction leaves the step or the slope changes by more than [`MOVE_BEND`] of its
+/// size over it.
+struct Taylor {
+    f: Vec<f64>,
+    half: Vec<f64>,
+}
+
+impl Taylor {
+    fn new(runs: &mut dyn Runs, y: &[f64], delta: f64, cost: &mut Cost) -> Result<Option<Self>> {
+        let d = y.len();
+        let mut f = vec![0.0; d];
+        runs.slope(y, &mut f, cost)?;
+        let euler: Vec<f64> = y.iter().zip(&f).map(|(a, b)| a + delta * b).collect();
+        let mut fe = vec![0.0; d];
+        runs.slope(&euler, &mut fe, cost)?;
+        let size = f.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
+        let bend = f
+            .iter()
+            .zip(&fe)
+            .fold(0.0_f64, |m, (a, b)| m.max((b - a).abs()));
+        if bend.is_nan() || bend > MOVE_BEND * size {
+            return Ok(None);
+        }
+        let half = f
+            .iter()
+            .zip(&fe)
+            .map(|(a, b)| 0.5 * (b - a) / delta)
+            .collect();
+        Ok(Some(Taylor { f, half }))
+    }
+
+    /// Y(s) from y into `out`.
+    fn at(&self, y: &[f64], s: f64, out: &mut [f64]) {
+        for (((o, y), f), q) in out.iter_mut().zip(y).zip(&self.f).zip(&self.half) {
+            *o = y + s * (f + s * q);
+        }
+    }
+
+    /// The largest of |s| |f(Y(s)) − Y'(s)| over the components, each in units of the
+    /// tolerance at `weight`'s value (one evaluation of g): the residual of the ODE, zero at
+    /// s = 0 and growing like s², whose integral over the move, at most |s| times its value at
+    /// s, is the polynomial's distance from the flow of y (three times that of a residual
+    /// growing exactly like s²).
+    fn rest(
+        &self,
+        runs: &mut dyn Runs,
+        ys: &[f64],
+        s: f64,
+        (rtol, atol): (f64, f64),
+        weight: &[f64],
+        cost: &mut Cost,
+    ) -> Result<f64> {
+        let mut fy = vec![0.0; ys.len()];
+        runs.slope(ys, &mut fy, cost)?;
+        let mut rest = 0.0_f64;
+        for (i, fy) in fy.iter().enumerate() {
+            let r = (fy - (self.f[i] + 2.0 * s * self.half[i])).abs() * s.abs();
+            if r > 0.0 {
+                rest = rest.max(r / (atol + rtol * weight[i].abs()));
+            }
+        }
+        Ok(rest)
+    }
+}
+
+/// The Newton correction from t₀, where it stays inside the step.
+fn correction(near: &Near) -> Option<f64> {
+    let delta = -near.e0 / near.slope;
+    let t1 = near.t0 + delta;
+    (delta.is_finite() && delta != 0.0 && t1 > near.bracket.0 && t1 < near.bracket.1)
+        .then_some(delta)
+}
+
+/// The zero near t₀ without further steps: the answer's value `ya` there moved along the field
+/// by its [`Taylor`] polynomial `pa`, the zero of e(t₀ + s, Y(s)) located on it to a few ulps,
+/// the check's value `check` (where the run is checked) moved by its own to the same time. The
+/// value's estimate is the runs' difference there plus each polynomial's bound of what it
+/// leaves ([`Taylor::rest`]). `None` where that does not apply: the polynomial's values do not
+/// bracket the zero within four corrections, or the bound exceeds [`MOVE_REST`] and the
+/// estimate with it exceeds [`INTERP_MAX`]; then the search goes on on the steps.
+///
+/// The steps' own values near t₀ differ from the flow of their value at t₀ by what the
+/// method's error changes over s, a share s/h of an error already within the estimate.
+#[allow(clippy::too_many_arguments)]
+fn moved_zero(
+    ctx: &Ctx<'_>,
+    runs: &mut dyn Runs,
+    (k, event): (usize, &Event),
+    near: &Near,
+    (ya, pa): (&[f64], &Taylor),
+    check: Option<(&[f64], &Taylor)>,
+    n: usize,
+    cost: &mut Cost,
+) -> Result<Option<Point>> {
+    let &Near {
+        t0,
+        e0,
+        bracket: (lo, hi),
+        ..
+    } = near;
+    let Some(delta) = correction(near) else {
+        return Ok(None);
+    };
+    let d = ya.len();
+    let mut y = vec![0.0; d];
+    let mut e_at = |t: f64| -> Result<f64> {
+        pa.at(ya, t - t0, &mut y);
+        event.value(k, t, &y)
+    };
+    // A bracket of the zero on the polynomial: t₀ and the Newton point, or a secant point
+    // beyond it, overshooting the secant's zero twofold (where the secant converges, its
+    // zero is much nearer than its last correction), within four corrections of t₀.
+    let (mut last, mut cur) = ((t0, e0), (t0 + delta, e_at(t0 + delta)?));
+    let mut far = None;
+    for _ in 0..3 {
+        if cur.1 == 0.0 || (cur.1 < 0.0) != (e0 < 0.0) {
+            far = Some(cur);
+            break;
+        }
+        let step = -cur.1 * (cur.0 - last.0) / (cur.1 - last.1);
+        let t = cur.0 + 2.0 * step;
+        if !(t > lo && t < hi && (t - t0).abs() <= 4.0 * delta.abs()) {
+            break;
+        }
+        last = cur;
+        cur = (t, e_at(t)?);
+    }
+    let Some(far) = far else {
+        return Ok(None);
+    };
+    let (a, b) = if far.0 > t0 {
+        ((t0, e0), far)
+    } else {
+        (far, (t0, e0))
+    };
+    let t = event.locate(a, b, &mut e_at)?;
+    let s = t - t0;
+    let mut y = vec![0.0; d];
+    pa.at(ya, s, &mut y);
+    let Some((yc, pc)) = check.filter(|_| ctx.verified) else {
+        return Ok(Some(Point { t, y, est: 0.0 }));
+    };
+    let mut c = vec![0.0; d];
+    pc.at(yc, s, &mut c);
+    let tolerance = (ctx.options.rtol, ctx.options.atol);
+    let rest = pa
+        .rest(runs, &y, s, tolerance, &y, cost)?
+        .max(pc.rest(runs, &c, s, tolerance, &y, cost)?);
+    let est = estimate(tolerance, ctx.unit, &y, &c, n + 1) + rest;
+    if est.is_nan() || (rest > MOVE_REST && est > INTERP_MAX) || !est.is_finite() {
+        return Ok(None);
+    }
+    Ok(Some(Point { t, y, est }))
 }
 
 #[cfg(test)]

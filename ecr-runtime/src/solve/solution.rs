@@ -429,7 +429,7 @@ impl<S: System> Solution<S> {
                 seeded: super::runs::seed_pays(self.stats.steps, self.stats.sweeps),
                 cost: &mut cost,
             },
-            out,
+            (out, None),
         )?;
         let (n, g) = dense.evals.get();
         dense
