@@ -388,9 +388,8 @@ const MOVE_REST: f64 = 0.05;
 
 /// A run's second-order Taylor polynomial `Y(s) = y + s f + ½ s² f'` at its value y at t₀:
 /// the slope f = Ay + g(y) there and half the slope's change per unit time, f' from the slope
-/// at the Euler point of the Newton correction δ (two evaluations of g). `None` where the
-/// Newton correction leaves the step or the slope changes by more than [`MOVE_BEND`] of its
-/// size over it.
+/// at the Euler point of the Newton correction δ ([`correction`]; two evaluations of g).
+/// `None` where the slope changes by more than [`MOVE_BEND`] of its size over δ.
 struct Taylor {
     f: Vec<f64>,
     half: Vec<f64>,
@@ -538,7 +537,7 @@ fn moved_zero(
         .rest(runs, &y, s, tolerance, &y, cost)?
         .max(pc.rest(runs, &c, s, tolerance, &y, cost)?);
     let est = estimate(tolerance, ctx.unit, &y, &c, n + 1) + rest;
-    if est.is_nan() || (rest > MOVE_REST && est > INTERP_MAX) || !est.is_finite() {
+    if !est.is_finite() || (rest > MOVE_REST && est > INTERP_MAX) {
         return Ok(None);
     }
     Ok(Some(Point { t, y, est }))
