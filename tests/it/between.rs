@@ -311,6 +311,116 @@ fn moved_event_hits_keep_the_tolerance() {
     });
 }
 
+/// Two zeros of an event function inside one step (its ends on the same side) are both found.
+/// q = sin 20t (`q'' = −400 q`, whose exponential steps are exact at any step, so the solve
+/// takes steps of 0.156) crosses 1/2 twice 0.105 apart, so most steps hold a rising and a
+/// falling crossing: every crossing over (0, 10) at its time (both directions, the rising ones
+/// alone, and the first as a terminal event, inside the first step), to the tolerance, and
+/// in a fixed run with a step of 0.15.
+/// Before the scan of each step on the interpolant, half of them were missed under an `Ok` at
+/// every tolerance. And Duffing ω = 20 over (0, 50) at 1e−4 (steps longer than the 0.157
+/// between its zeros of q): as many crossings of q = 0 as a solve at 1e−8 (299 of 318 before).
+#[test]
+fn two_zeros_in_one_step_are_both_found() {
+    let w = 20.0_f64;
+    let a = Dense::new(DMatrix::from_row_slice(2, 2, &[0.0, 1.0, -w * w, 0.0])).unwrap();
+    let g = |_: &[f64], out: &mut [f64]| out.fill(0.0);
+    let problem = Problem::new(Semilinear::new(a, g), [0.0, w], (0.0, 10.0)).unwrap();
+    let pi = std::f64::consts::PI;
+    // The crossings of q = 1/2: rising at ωt = π/6 + 2πk, falling at 5π/6 + 2πk.
+    let crossings = |rising_only: bool| -> Vec<f64> {
+        let mut ts: Vec<f64> = (0..40)
+            .flat_map(|k| {
+                let up = (pi / 6.0 + 2.0 * pi * f64::from(k)) / w;
+                let down = (5.0 * pi / 6.0 + 2.0 * pi * f64::from(k)) / w;
+                [Some(up), (!rising_only).then_some(down)]
+            })
+            .flatten()
+            .filter(|&t| t < 10.0)
+            .collect();
+        ts.sort_by(f64::total_cmp);
+        ts
+    };
+    for tol in [1e-4, 1e-8] {
+        for (direction, rising_only) in [(Direction::Both, false), (Direction::Rising, true)] {
+            let event = Event::new(|_, y: &[f64]| y[0] - 0.5).direction(direction);
+            let sol = problem
+                .solve(&Options::tolerance(tol).event(event))
+                .unwrap();
+            assert!(
+                sol.segments.iter().all(|s| s.h > 0.11),
+                "steps shorter than the zeros' distance test nothing: {:?}",
+                sol.segments
+            );
+            let exact = crossings(rising_only);
+            let found: Vec<f64> = sol.events.iter().map(|h| h.t).collect();
+            assert_eq!(
+                found.len(),
+                exact.len(),
+                "tol {tol:e}, {direction:?}: {found:?}"
+            );
+            for (hit, t) in sol.events.iter().zip(&exact) {
+                assert!(
+                    (hit.t - t).abs() <= tol * (1.0 + t),
+                    "tol {tol:e}, {direction:?}: hit at {} for {t}",
+                    hit.t
+                );
+                let state = [(w * hit.t).sin(), w * (w * hit.t).cos()];
+                assert!(units(&hit.y, &state, tol) <= 10.0, "the state at {}", hit.t);
+            }
+        }
+        // A fixed run scans its steps too (a fixed step of 0.15, the values its steps').
+        let event = Event::new(|_, y: &[f64]| y[0] - 0.5);
+        let sol = problem
+            .solve(&Options::fixed(4, 0.15).event(event))
+            .unwrap();
+        let exact = crossings(false);
+        assert_eq!(sol.events.len(), exact.len(), "a fixed run");
+        for (hit, t) in sol.events.iter().zip(&exact) {
+            assert!(
+                (hit.t - t).abs() <= 1e-12 * (1.0 + t),
+                "fixed: {} for {t}",
+                hit.t
+            );
+        }
+        let event = Event::new(|_, y: &[f64]| y[0] - 0.5).terminal();
+        let sol = problem
+            .solve(&Options::tolerance(tol).event(event))
+            .unwrap();
+        let first = crossings(false)[0];
+        assert_eq!(sol.events.len(), 1);
+        assert!((sol.events[0].t - first).abs() <= tol, "{:?}", sol.events);
+    }
+    let k = 0.07;
+    let duffing = Dense::new(DMatrix::from_row_slice(
+        2,
+        2,
+        &[0.0, 1.0, -(w * w + k * k), 0.0],
+    ))
+    .unwrap();
+    let g = move |y: &[f64], o: &mut [f64]| {
+        o[0] = 0.0;
+        o[1] = 2.0 * k * k * y[0] * y[0] * y[0];
+    };
+    let problem = Problem::new(Semilinear::new(duffing, g), [0.0, w], (0.0, 50.0)).unwrap();
+    let crossings = |tol: f64| {
+        problem
+            .solve(&Options::tolerance(tol).event(Event::new(|_, y: &[f64]| y[0])))
+            .unwrap()
+            .events
+    };
+    let (loose, tight) = (crossings(1e-4), crossings(1e-8));
+    assert_eq!(loose.len(), tight.len());
+    for (a, b) in loose.iter().zip(&tight) {
+        assert!(
+            (a.t - b.t).abs() <= 1e-4 * (1.0 + b.t),
+            "{} against {}",
+            a.t,
+            b.t
+        );
+    }
+}
+
 /// Many outputs do not steer the run: on Duffing ω = 20 over T = 1000 (dense 2 × 2 linear
 /// part) the solve with 4000 uneven `t_eval` takes the grid of the solve without them, step
 /// for step, and every output is within the tolerance of the same output of a solve 100

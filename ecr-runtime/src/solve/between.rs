@@ -258,6 +258,8 @@ pub(super) struct Trail {
     slope_check: Vec<f64>,
     /// The runs' [`stiffness`](super::runs::stiffness), taken with the first slopes.
     stiffness: Vec<f64>,
+    /// The last event scans' interpolation weights, for each of the two geometries.
+    scan_weights: [super::interp::ScanWeights; 2],
 }
 
 impl Trail {
@@ -297,10 +299,54 @@ impl Trail {
                     &mut self.slope_answer[at.clone()],
                     cost,
                 )?;
+            }
+            if self.slope_check[at.start].is_nan() {
                 runs.slope(&self.check[at.clone()], &mut self.slope_check[at], cost)?;
             }
         }
         Ok(())
+    }
+
+    /// The answer's interpolant at `times` (inside the grid's interval around `t`) into `out`
+    /// (`d` numbers per time), for a scan of the event functions inside a step: on the grid
+    /// points [`Grid::scan_range`] names, with the answer's slopes there (one evaluation of g
+    /// per point not evaluated yet). `false` where the trail has no interpolant there.
+    ///
+    /// # Errors
+    /// What [`Runs::slope`] reports.
+    pub(super) fn scan(
+        &mut self,
+        t: f64,
+        times: &[f64],
+        runs: &mut dyn Runs,
+        cost: &mut Cost,
+        out: &mut [f64],
+    ) -> Result<bool> {
+        let d = self.answer.len() / self.t.len().max(1);
+        let Some(range) = self.grid(d).scan_range(t) else {
+            return Ok(false);
+        };
+        if self.stiffness.is_empty() {
+            self.stiffness = runs.stiffness().to_vec();
+        }
+        for j in range.clone() {
+            let at = j * d..(j + 1) * d;
+            if self.slope_answer[at.start].is_nan() {
+                runs.slope(&self.answer[at.clone()], &mut self.slope_answer[at], cost)?;
+            }
+        }
+        // The weights of the two geometries (t in the stencil's first interval, or in its
+        // second at the grid's end).
+        let slot = usize::from(t >= self.t[range.start + 1]);
+        let mut weights = std::mem::take(&mut self.scan_weights[slot]);
+        if !weights.fits(&self.grid(d), range.clone(), times) {
+            self.grid(d)
+                .scan_weights(range.clone(), times, &mut weights);
+        }
+        let slopes = &self.slope_answer[range.start * d..range.end * d];
+        self.grid(d).answer_on(range, slopes, &weights, out);
+        self.scan_weights[slot] = weights;
+        Ok(true)
     }
 
     /// The slopes of the points in `range` (evaluated by [`Trail::slopes`]).

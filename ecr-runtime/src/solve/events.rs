@@ -30,9 +30,10 @@ pub struct Event {
 }
 
 impl Event {
-    /// An event at the zeros of `f(t, y)` (sign changes between output points of the
-    /// integration's finest grid; a zero touched without a sign change inside one step is not
-    /// seen). A NaN from `f` is an error of the solve. `f` is `Send + Sync` (it captures no
+    /// An event at the zeros of `f(t, y)`: its sign changes along the solution, looked for at
+    /// the grid points and at four points inside each step on the grid's interpolant (a zero
+    /// touched without a sign change is not seen, nor two zeros closer together than a fifth
+    /// of a step that the interpolant misses). A NaN from `f` is an error of the solve. `f` is `Send + Sync` (it captures no
     /// `Rc` or `Cell`): the options that hold it may be shared between threads.
     pub fn new(f: impl Fn(f64, &[f64]) -> f64 + Send + Sync + 'static) -> Self {
         Event {
@@ -177,8 +178,104 @@ impl Event {
 /// tol 1e−8: up to 36 values for one zero, against 4 to 6 here).
 const STEPS_ULPS: f64 = 64.0;
 
-/// The zero of event `k` over the step from `prev` to `p` (where it changes sign from `before`
-/// to `after`), and the value there.
+/// The interior points of a step at which the event functions are sampled on the grid's
+/// interpolant ([`brackets`]), evenly spaced: two zeros of an event function closer than a
+/// fifth of the step to each other (a near touch) can still hide between them.
+pub(super) const SCAN: usize = 4;
+
+/// A zero's bracket: two (time, event function) pairs, the function's signs different.
+pub(super) type Bracket = ((f64, f64), (f64, f64));
+
+/// The brackets of event `k`'s zeros over the step from `prev` to `p`, where it is `before`
+/// and `after`, into `out` in time order. Where the event function sampled on the answer's
+/// interpolant at `scan` (times and states inside the step) changes sign more often than its
+/// ends say (two zeros in one step, where the ends' signs agree; three where they differ), it
+/// is evaluated on the answer's steps at one sample of each stretch the interpolant puts on
+/// another side than the stretch before (the one farthest from zero), and each sign change that
+/// counts between those values and the ends is a bracket; else the step is the bracket where
+/// its ends' change counts.
+///
+/// # Errors
+/// What [`between`] and the event function report.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn brackets(
+    ctx: &Ctx<'_>,
+    runs: &mut dyn Runs,
+    (prev, p): (&GridPoint, &GridPoint),
+    n: usize,
+    (k, event): (usize, &Event),
+    (before, after): (f64, f64),
+    scan: Option<(&[f64], &[f64])>,
+    mut trail: Option<&mut Trail>,
+    cost: &mut Cost,
+    out: &mut Vec<Bracket>,
+) -> Result<()> {
+    out.clear();
+    let whole = event.counts(before, after);
+    let side = |e: f64| e >= 0.0;
+    // The stretches of samples on one side of zero on the interpolant (a NaN there, off the
+    // solution, tells nothing and is passed over): the sample of each farthest from zero.
+    let mut stretches = [(0, 0.0_f64); SCAN];
+    let mut count = 0;
+    if let Some((times, states)) = scan {
+        let d = prev.answer.len();
+        // A zero at the start has no side: the samples after it set one (a zero it leaves
+        // is no sign change, but one it comes back to is).
+        let mut last = (before != 0.0).then(|| side(before));
+        for (i, &t) in times.iter().enumerate() {
+            let e = (event.f)(t, &states[i * d..(i + 1) * d]);
+            if e.is_nan() {
+                continue;
+            }
+            if last != Some(side(e)) {
+                stretches[count] = (i, e.abs());
+                count += 1;
+                last = Some(side(e));
+            } else if count > 0 && e.abs() > stretches[count - 1].1 {
+                stretches[count - 1] = (i, e.abs());
+            }
+        }
+        // The last stretch is the end's where it is on the end's side.
+        if count > 0 && last == Some(side(after)) {
+            count -= 1;
+        }
+    }
+    if count == 0 {
+        if whole {
+            out.push(((prev.t, before), (p.t, after)));
+        }
+        return Ok(());
+    }
+    // More sign changes than the ends show: one sample of each stretch on the answer's steps.
+    let times = scan.map_or(&[][..], |(times, _)| times);
+    let mut a = (prev.t, before);
+    for &(i, _) in &stretches[..count] {
+        let t = times[i];
+        let v = between(
+            ctx,
+            runs,
+            prev,
+            n,
+            t,
+            trail.as_deref_mut(),
+            Source::Answer,
+            cost,
+        )?;
+        let b = (t, event.value(k, t, &v.y)?);
+        if event.counts(a.1, b.1) {
+            out.push((a, b));
+        }
+        a = b;
+    }
+    if event.counts(a.1, after) {
+        out.push((a, (p.t, after)));
+    }
+    Ok(())
+}
+
+/// The zero of event `k` in the bracket `(lo, hi)` (times and the event function's values,
+/// of different signs) inside the step from `prev` to `p` (the whole step, or a part of it
+/// where a scan found more than one sign change in it), and the value there.
 ///
 /// Each evaluation on the solution is a value between grid points ([`between`]), which costs a
 /// step of each run where the interpolant does not serve. So the zero is first located on the
@@ -207,7 +304,7 @@ pub(super) fn hit(
     (prev, p): (&GridPoint, &GridPoint),
     n: usize,
     (k, event): (usize, &Event),
-    (before, after): (f64, f64),
+    (lo, hi): Bracket,
     mut trail: Option<&mut Trail>,
     cost: &mut Cost,
 ) -> Result<Point> {
@@ -215,7 +312,7 @@ pub(super) fn hit(
     // The zero on the interpolant, and the slope of the event function there.
     let mut guess = None;
     if let Some(trail) = trail.as_deref_mut() {
-        if let Some(stencil) = trail.grid(d).stencil(prev.t.midpoint(p.t)) {
+        if let Some(stencil) = trail.grid(d).stencil(lo.0.midpoint(hi.0)) {
             trail.slopes(stencil.range(), runs, cost)?;
             let slopes = trail.slopes_at(stencil.range());
             let grid = trail.grid(d);
@@ -224,11 +321,11 @@ pub(super) fn hit(
                 grid.states_at(std::iter::once(t), stencil, slopes, false, &mut y);
                 event.value(k, t, &y)
             };
-            let t0 = event.locate((prev.t, before), (p.t, after), &mut on_interp)?;
+            let t0 = event.locate(lo, hi, &mut on_interp)?;
             let dt = 1e-6 * (p.t - prev.t);
-            let (a, b) = ((t0 - dt).max(prev.t), (t0 + dt).min(p.t));
+            let (a, b) = ((t0 - dt).max(lo.0), (t0 + dt).min(hi.0));
             let slope = (on_interp(b)? - on_interp(a)?) / (b - a);
-            if ctx.verified && t0 > prev.t && t0 < p.t {
+            if ctx.verified && t0 > lo.0 && t0 < hi.0 {
                 // The interpolant's own estimate there: where it serves, the zero is found.
                 let tolerance = (ctx.options.rtol, ctx.options.atol);
                 let est = grid.value(
@@ -248,7 +345,7 @@ pub(super) fn hit(
             guess = Some((t0, slope));
         }
     }
-    let (mut lo, mut hi) = ((prev.t, before), (p.t, after));
+    let (mut lo, mut hi) = (lo, hi);
     // The values of the search on the steps, and the first of them (with the slope there).
     let mut seen: Vec<Point> = Vec::new();
     let mut first = None;

@@ -1,5 +1,6 @@
 //! A fixed method: ECrP with a fixed step, no check and no estimate.
 
+use super::between::Trail;
 use super::record::{Observer, Record};
 use super::runs::{Cost, Runs};
 use super::window::{Ctx, GridPoint, State, StepFailure, advance, keep, start_outputs};
@@ -28,6 +29,13 @@ pub(super) fn fixed(
     if options.dense {
         record.grid(ctx.t0, ctx.y0, ctx.y0)?;
     }
+    // The last grid points, for the events' scan of each step (a fixed run's values between
+    // grid points are its steps').
+    let mut trail = (!options.events.is_empty()).then(|| {
+        let mut trail = Trail::default();
+        trail.push(ctx.t0, ctx.y0, ctx.y0);
+        trail
+    });
     let mut state = ctx.start();
     let chunk = if observer.is_some() { 1 } else { CHUNK };
     let total = plan.steps();
@@ -77,6 +85,11 @@ pub(super) fn fixed(
             check: state.check.clone(),
             est: 0.0,
         };
+        if let Some(trail) = &mut trail {
+            for q in &points {
+                trail.push(q.t, &q.answer, &q.check);
+            }
+        }
         keep(
             ctx,
             runs,
@@ -87,8 +100,11 @@ pub(super) fn fixed(
             &mut t_eval_next,
             &mut ev_prev,
             observer.is_some(),
-            None,
+            trail.as_mut(),
         )?;
+        if let Some(trail) = &mut trail {
+            trail.trim();
+        }
         record.step_size_from(state.t, size);
         let last = points.last().expect("a chunk has a step");
         state = State {

@@ -53,6 +53,36 @@ pub(super) struct Grid<'a> {
     pub(super) stiffness: &'a [f64],
 }
 
+/// The weights of an event scan's interpolant at its sample times ([`Grid::scan_weights`]),
+/// kept while the grid's geometry stays (a constant step).
+#[derive(Default)]
+pub(super) struct ScanWeights {
+    /// The points' and the times' places, relative to the first point, in units of the
+    /// points' span.
+    places: Vec<f64>,
+    w: Vec<f64>,
+}
+
+impl ScanWeights {
+    /// Whether these weights hold for the grid points `range` and `times` (their places
+    /// agree to 1e−12 of the span: the samples only tell where to look, on the steps).
+    pub(super) fn fits(
+        &self,
+        grid: &Grid<'_>,
+        range: std::ops::Range<usize>,
+        times: &[f64],
+    ) -> bool {
+        let xs = &grid.t[range];
+        let scale = xs[xs.len() - 1] - xs[0];
+        self.places.len() == xs.len() + times.len()
+            && xs
+                .iter()
+                .chain(times)
+                .zip(&self.places)
+                .all(|(&x, &p)| ((x - xs[0]) / scale - p).abs() <= 1e-12)
+    }
+}
+
 /// The Hermite interpolant at `t` of the values `y` and slopes `dy` (component `i` of `d`, at
 /// the points `xs`), by divided differences on the doubled nodes, in the scaled variable
 /// (x − xs₀)/`scale`.
@@ -171,6 +201,88 @@ impl Grid<'_> {
             let newton = Newton::new(xs, y, dy, d, i, scale);
             for (j, t) in times.clone().enumerate() {
                 out[j * d + i] = newton.at(t);
+            }
+        }
+    }
+
+    /// The grid points an event scan at `t` reads: the interval holding t and the point after
+    /// it (the one before at the grid's end; one geometry along a constant step, so the
+    /// [`ScanWeights`] hold), `None` where t lies outside the grid.
+    pub(super) fn scan_range(&self, t: f64) -> Option<std::ops::Range<usize>> {
+        let n = self.len();
+        if n < 2 || !(self.t[0]..=self.t[n - 1]).contains(&t) {
+            return None;
+        }
+        let k = self
+            .t
+            .partition_point(|&tk| tk <= t)
+            .saturating_sub(1)
+            .min(n - 2);
+        if n == 2 {
+            return Some(0..2);
+        }
+        Some(if k + 2 == n { k - 1..k + 2 } else { k..k + 3 })
+    }
+
+    /// The weights of the Hermite interpolant on the grid points `range` (from
+    /// [`scan_range`](Self::scan_range)) at `times`: for each time, two per point (the
+    /// point's value's, its slope's), into `weights`, and the geometry they hold for (the
+    /// points' and times' places relative to the first point and the points' span), which
+    /// [`ScanWeights::fits`] compares.
+    pub(super) fn scan_weights(
+        &self,
+        range: std::ops::Range<usize>,
+        times: &[f64],
+        weights: &mut ScanWeights,
+    ) {
+        let xs = &self.t[range];
+        let m = xs.len();
+        let scale = xs[m - 1] - xs[0];
+        weights.places.clear();
+        weights
+            .places
+            .extend(xs.iter().chain(times).map(|&x| (x - xs[0]) / scale));
+        weights.w.clear();
+        weights.w.resize(2 * m * times.len(), 0.0);
+        let (mut y, mut dy) = (vec![0.0; m], vec![0.0; m]);
+        for q in 0..2 * m {
+            y.fill(0.0);
+            dy.fill(0.0);
+            if q % 2 == 0 {
+                y[q / 2] = 1.0;
+            } else {
+                dy[q / 2] = 1.0;
+            }
+            let newton = Newton::new(xs, &y, &dy, 1, 0, scale);
+            for (j, &t) in times.iter().enumerate() {
+                weights.w[j * 2 * m + q] = newton.at(t);
+            }
+        }
+    }
+
+    /// The answer's Hermite interpolant on the grid points `range` at the times `weights`
+    /// holds for ([`scan_weights`](Self::scan_weights)), state after state into `out`, with
+    /// the answer's slopes `slopes` at those points (`d` numbers per point): where an event
+    /// function is sampled inside a step.
+    pub(super) fn answer_on(
+        &self,
+        range: std::ops::Range<usize>,
+        slopes: &[f64],
+        weights: &ScanWeights,
+        out: &mut [f64],
+    ) {
+        let d = self.d;
+        let m = range.len();
+        let y = &self.answer[range.start * d..range.end * d];
+        for (j, w) in weights.w.chunks_exact(2 * m).enumerate() {
+            let o = &mut out[j * d..(j + 1) * d];
+            o.fill(0.0);
+            for p in 0..m {
+                let (wy, ws) = (w[2 * p], w[2 * p + 1]);
+                let (yp, sp) = (&y[p * d..(p + 1) * d], &slopes[p * d..(p + 1) * d]);
+                for ((o, y), s) in o.iter_mut().zip(yp).zip(sp) {
+                    *o += wy * y + ws * s;
+                }
             }
         }
     }

@@ -296,33 +296,67 @@ pub(super) fn keep(
     let mut terminal = None;
     let h = runs.step_size();
     let mut prev = start;
+    // The event functions' samples inside each step: times and the answer's interpolant there.
+    let d = start.answer.len();
+    let mut scan_t = [0.0; super::events::SCAN];
+    let mut scan_y = if options.events.is_empty() {
+        Vec::new()
+    } else {
+        vec![0.0; super::events::SCAN * d]
+    };
+    let mut brackets = Vec::new();
     for (j, p) in points.iter().enumerate() {
         let n = n0 + j;
-        // Events: a sign change of an event function over this step, located by partial steps
-        // of the answer from the grid point before it.
+        // Events: the sign changes of an event function over this step (at its ends and at
+        // the interpolant's samples inside it), located by partial steps of the answer from
+        // the grid point before it. The trail is the scan's in any run, and the values'
+        // between grid points in a checked one (an unchecked run's are its steps').
         let mut first_hit: Option<(usize, Point)> = None;
+        let mut scanned = false;
+        if !options.events.is_empty() {
+            if let Some(trail) = trail.as_deref_mut() {
+                let parts = (scan_t.len() + 1) as f64;
+                for (i, t) in scan_t.iter_mut().enumerate() {
+                    *t = prev.t + (p.t - prev.t) * (i + 1) as f64 / parts;
+                }
+                scanned =
+                    trail.scan(prev.t.midpoint(p.t), &scan_t, runs, &mut cost, &mut scan_y)?;
+            }
+        }
         for (k, event) in options.events.iter().enumerate() {
             let after = event.value(k, p.t, &p.answer)?;
             let before = ev_prev[k];
             ev_prev[k] = after;
-            if !event.counts(before, after) {
-                continue;
-            }
-            let hit = super::events::hit(
+            super::events::brackets(
                 ctx,
                 runs,
                 (prev, p),
                 n,
                 (k, event),
                 (before, after),
-                trail.as_deref_mut(),
+                scanned.then_some((&scan_t[..], &scan_y[..])),
+                trail.as_deref_mut().filter(|_| ctx.verified),
                 &mut cost,
+                &mut brackets,
             )?;
-            between_worst = between_worst.max(hit.est);
-            if event.terminal && first_hit.as_ref().is_none_or(|(_, q)| hit.t < q.t) {
-                first_hit = Some((k, hit.clone()));
-            }
-            if !event.terminal {
+            for &bracket in &brackets {
+                let hit = super::events::hit(
+                    ctx,
+                    runs,
+                    (prev, p),
+                    n,
+                    (k, event),
+                    bracket,
+                    trail.as_deref_mut().filter(|_| ctx.verified),
+                    &mut cost,
+                )?;
+                between_worst = between_worst.max(hit.est);
+                if event.terminal {
+                    if first_hit.as_ref().is_none_or(|(_, q)| hit.t < q.t) {
+                        first_hit = Some((k, hit));
+                    }
+                    break;
+                }
                 record.hits.push((k, hit));
             }
         }
@@ -356,7 +390,7 @@ pub(super) fn keep(
                             prev,
                             n,
                             t,
-                            trail.as_deref_mut(),
+                            trail.as_deref_mut().filter(|_| ctx.verified),
                             Source::Rule,
                             &mut cost,
                         )?
