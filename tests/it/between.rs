@@ -61,6 +61,23 @@ fn worst_between<S: System>(
 
 /// Stiff relaxation to y = sin t: u' = λ(u − s) + c with s = sin t, c = cos t carried as
 /// variables, λ on the diagonal of A. Exact: u = sin t + e^{λt}.
+/// Duffing ω = 20, k = 0.07 from (0, ω) over (0, `t_end`), with a dense 2 × 2 linear part
+/// A = [[0, 1], [−ω² − k², 0]] and g = (0, 2k²q³).
+fn duffing(t_end: f64) -> Problem<impl System> {
+    let (w, k) = (20.0_f64, 0.07);
+    let a = DMatrix::from_row_slice(2, 2, &[0.0, 1.0, -(w * w + k * k), 0.0]);
+    let g = move |y: &[f64], o: &mut [f64]| {
+        o[0] = 0.0;
+        o[1] = 2.0 * k * k * y[0] * y[0] * y[0];
+    };
+    Problem::new(
+        Semilinear::new(Dense::new(a).unwrap(), g),
+        [0.0, w],
+        (0.0, t_end),
+    )
+    .unwrap()
+}
+
 fn relaxation(lambda: f64) -> Problem<impl System> {
     let a = Diagonal::new(vec![lambda, 0.0, 0.0]).unwrap();
     let g = move |y: &[f64], out: &mut [f64]| {
@@ -391,18 +408,7 @@ fn two_zeros_in_one_step_are_both_found() {
         assert_eq!(sol.events.len(), 1);
         assert!((sol.events[0].t - first).abs() <= tol, "{:?}", sol.events);
     }
-    let k = 0.07;
-    let duffing = Dense::new(DMatrix::from_row_slice(
-        2,
-        2,
-        &[0.0, 1.0, -(w * w + k * k), 0.0],
-    ))
-    .unwrap();
-    let g = move |y: &[f64], o: &mut [f64]| {
-        o[0] = 0.0;
-        o[1] = 2.0 * k * k * y[0] * y[0] * y[0];
-    };
-    let problem = Problem::new(Semilinear::new(duffing, g), [0.0, w], (0.0, 50.0)).unwrap();
+    let problem = duffing(50.0);
     let crossings = |tol: f64| {
         problem
             .solve(&Options::tolerance(tol).event(Event::new(|_, y: &[f64]| y[0])))
@@ -430,18 +436,7 @@ fn two_zeros_in_one_step_are_both_found() {
 /// then integrated 656 windows again and started again from t₀; at 1e−6, 1034 windows.
 #[test]
 fn many_outputs_do_not_change_the_grid() {
-    let (w, k) = (20.0f64, 0.07);
-    let a = Dense::new(DMatrix::from_row_slice(
-        2,
-        2,
-        &[0.0, 1.0, -(w * w + k * k), 0.0],
-    ))
-    .unwrap();
-    let g = move |y: &[f64], o: &mut [f64]| {
-        o[0] = 0.0;
-        o[1] = 2.0 * k * k * y[0] * y[0] * y[0];
-    };
-    let problem = Problem::new(Semilinear::new(a, g), [0.0, w], (0.0, 1000.0)).unwrap();
+    let problem = duffing(1000.0);
     let times = uneven(0.0, 1000.0, 4000);
     for tol in [1e-6, 1e-8] {
         let plain = problem.solve(&Options::tolerance(tol)).unwrap();

@@ -251,17 +251,16 @@ pub(super) fn brackets(
     let mut a = (prev.t, before);
     for &(i, _) in &stretches[..count] {
         let t = times[i];
-        let v = between(
+        let (_, e) = on_answer(
             ctx,
             runs,
-            prev,
-            n,
+            (prev, n),
             t,
             trail.as_deref_mut(),
-            Source::Answer,
+            (k, event),
             cost,
         )?;
-        let b = (t, event.value(k, t, &v.y)?);
+        let b = (t, e);
         if event.counts(a.1, b.1) {
             out.push((a, b));
         }
@@ -363,17 +362,15 @@ pub(super) fn hit(
             // The answer at the interpolant's zero; where the zero on the steps is that close
             // to it that the field's Taylor polynomial from there reaches it, the check there
             // too, and no more steps.
-            let v = between(
+            let (v, e0) = on_answer(
                 ctx,
                 runs,
-                prev,
-                n,
+                (prev, n),
                 t0,
                 trail.as_deref_mut(),
-                Source::Answer,
+                (k, event),
                 cost,
             )?;
-            let e0 = event.value(k, t0, &v.y)?;
             let near = Near {
                 t0,
                 e0,
@@ -430,17 +427,15 @@ pub(super) fn hit(
     // The search's values: the answer's steps alone (the check's is needed only where it
     // stops), kept for that one.
     let mut on_steps = |t: f64, seen: &mut Vec<Point>| -> Result<f64> {
-        let v = between(
+        let (v, e) = on_answer(
             ctx,
             runs,
-            prev,
-            n,
+            (prev, n),
             t,
             trail.as_deref_mut(),
-            Source::Answer,
+            (k, event),
             cost,
         )?;
-        let e = event.value(k, t, &v.y)?;
         seen.push(v);
         Ok(e)
     };
@@ -463,6 +458,24 @@ pub(super) fn hit(
         None => Source::Steps,
     };
     between(ctx, runs, prev, n, t_hit, trail, source, cost)
+}
+
+/// The answer's step from the grid point `prev` (the `n`-th) to `t`, and event `k` there.
+///
+/// # Errors
+/// What [`between`] and the event function report.
+fn on_answer(
+    ctx: &Ctx<'_>,
+    runs: &mut dyn Runs,
+    (prev, n): (&GridPoint, usize),
+    t: f64,
+    trail: Option<&mut Trail>,
+    (k, event): (usize, &Event),
+    cost: &mut Cost,
+) -> Result<(Point, f64)> {
+    let v = between(ctx, runs, prev, n, t, trail, Source::Answer, cost)?;
+    let e = event.value(k, t, &v.y)?;
+    Ok((v, e))
 }
 
 /// Where the search on the runs' steps starts: the interpolant's zero t₀, the event function
