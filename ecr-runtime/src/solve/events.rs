@@ -283,7 +283,9 @@ pub(super) fn brackets(
 /// runs step to the interpolant's zero t₀, and their values there are moved along the field
 /// to the zero nearby ([`moved_zero`]: a second-order Taylor polynomial of each run, from
 /// three evaluations of g each, its distance from the flow bounded a posteriori and added to
-/// the estimate). Where the move does not apply (the zero too far from t₀ for the polynomial),
+/// the estimate); where the answer's polynomial bends too much over the correction, its step to
+/// the Newton point from t₀ is the next base, with the secant's slope. Where the move does not
+/// apply (the zero too far from both bases for the polynomial),
 /// the zero is searched on the answer's steps alone (one source for every value of the
 /// search: a function that switched between the interpolant and the steps would jump by up to
 /// their difference, and the search would creep at the jump; the check's step is taken only at
@@ -361,67 +363,91 @@ pub(super) fn hit(
         if t0 > lo.0 && t0 < hi.0 {
             // The answer at the interpolant's zero; where the zero on the steps is that close
             // to it that the field's Taylor polynomial from there reaches it, the check there
-            // too, and no more steps.
-            let (v, e0) = on_answer(
-                ctx,
-                runs,
-                (prev, n),
-                t0,
-                trail.as_deref_mut(),
-                (k, event),
-                cost,
-            )?;
-            let near = Near {
-                t0,
-                e0,
-                slope,
-                bracket: (lo.0, hi.0),
-            };
-            if e0 == 0.0 {
-                let source = if ctx.verified {
-                    Source::Check(&v.y)
-                } else {
-                    Source::Answer
-                };
-                return between(ctx, runs, prev, n, t0, trail, source, cost);
-            }
-            // A move that fails (g or the event function not finite off the solution, where
-            // the Euler point lies) leaves the search on the steps, which reports what is
-            // wrong on the solution itself.
-            let taylor = |runs: &mut dyn Runs, y: &[f64], cost: &mut Cost| match correction(&near) {
-                Some(delta) => Taylor::new(runs, y, delta, cost).ok().flatten(),
-                None => None,
-            };
-            if let Some(pa) = taylor(runs, &v.y, cost) {
-                let mut yc = vec![0.0; d];
-                let check = if ctx.verified {
-                    between_into(
-                        ctx,
-                        runs,
-                        prev,
-                        n,
-                        t0,
-                        trail.as_deref_mut(),
-                        Source::Check(&v.y),
-                        Some(&mut yc),
-                        cost,
-                    )?;
-                    taylor(runs, &yc, cost)
-                } else {
-                    None
-                };
-                if ctx.verified == check.is_some() {
-                    let check = check.as_ref().map(|pc| (&yc[..], pc));
-                    let moved =
-                        moved_zero(ctx, runs, (k, event), &near, (&v.y, &pa), check, n, cost);
-                    if let Ok(Some(point)) = moved {
-                        return Ok(point);
+            // too, and no more steps. Where the answer's polynomial bends too much over the
+            // correction (a zero farther from t₀ than the polynomial reaches), the answer at
+            // the Newton point is the next base, with the secant's slope: its correction is
+            // the Newton step's error, far smaller ([`MOVE_BASES`] bases at most).
+            let (mut base, mut slope) = (t0, slope);
+            let mut last: Option<(f64, f64)> = None;
+            for _ in 0..MOVE_BASES {
+                let (v, e0) = on_answer(
+                    ctx,
+                    runs,
+                    (prev, n),
+                    base,
+                    trail.as_deref_mut(),
+                    (k, event),
+                    cost,
+                )?;
+                if let Some((tl, el)) = last {
+                    let secant = (e0 - el) / (base - tl);
+                    if secant.is_finite() && secant != 0.0 {
+                        slope = secant;
                     }
                 }
+                let near = Near {
+                    t0: base,
+                    e0,
+                    slope,
+                    bracket: (lo.0, hi.0),
+                };
+                if e0 == 0.0 {
+                    let source = if ctx.verified {
+                        Source::Check(&v.y)
+                    } else {
+                        Source::Answer
+                    };
+                    return between(ctx, runs, prev, n, base, trail, source, cost);
+                }
+                // A move that fails (g or the event function not finite off the solution,
+                // where the Euler point lies) leaves the search on the steps, which reports
+                // what is wrong on the solution itself.
+                let taylor =
+                    |runs: &mut dyn Runs, y: &[f64], cost: &mut Cost| match correction(&near) {
+                        Some(delta) => Taylor::new(runs, y, delta, cost).ok().flatten(),
+                        None => None,
+                    };
+                let answer = taylor(runs, &v.y, cost);
+                let bent = answer.is_none();
+                if let Some(pa) = answer {
+                    let mut yc = vec![0.0; d];
+                    let check = if ctx.verified {
+                        between_into(
+                            ctx,
+                            runs,
+                            prev,
+                            n,
+                            base,
+                            trail.as_deref_mut(),
+                            Source::Check(&v.y),
+                            Some(&mut yc),
+                            cost,
+                        )?;
+                        taylor(runs, &yc, cost)
+                    } else {
+                        None
+                    };
+                    if ctx.verified == check.is_some() {
+                        let check = check.as_ref().map(|pc| (&yc[..], pc));
+                        let moved =
+                            moved_zero(ctx, runs, (k, event), &near, (&v.y, &pa), check, n, cost);
+                        if let Ok(Some(point)) = moved {
+                            return Ok(point);
+                        }
+                    }
+                }
+                seen.push(v);
+                narrow((base, e0), &mut lo, &mut hi);
+                first = Some((base, e0, slope));
+                let next = correction(&near).map(|delta| base + delta);
+                match next.filter(|&t| bent && t > lo.0 && t < hi.0) {
+                    Some(t) => {
+                        last = Some((base, e0));
+                        base = t;
+                    }
+                    None => break,
+                }
             }
-            seen.push(v);
-            narrow((t0, e0), &mut lo, &mut hi);
-            first = Some((t0, e0, slope));
         }
     }
     // The search's values: the answer's steps alone (the check's is needed only where it
@@ -486,6 +512,10 @@ struct Near {
     slope: f64,
     bracket: (f64, f64),
 }
+
+/// The bases a zero's Taylor move is tried from: the interpolant's zero, and where the
+/// answer's polynomial bends too much there, the Newton point from it.
+const MOVE_BASES: usize = 2;
 
 /// The Taylor polynomial of a run's value is used only where its quadratic term changes the
 /// slope by at most this share over the move (so its cubic term is smaller still by about as
