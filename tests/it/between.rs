@@ -278,14 +278,7 @@ fn moved_event_hits_keep_the_tolerance() {
     let kepler = Problem::new(
         Semilinear::new(
             ecr::runtime::operator::Zero::new(4),
-            |y: &[f64], o: &mut [f64]| {
-                let r2 = y[0] * y[0] + y[1] * y[1];
-                let r3 = r2 * r2.sqrt();
-                o[0] = y[2];
-                o[1] = y[3];
-                o[2] = -y[0] / r3;
-                o[3] = -y[1] / r3;
-            },
+            crate::common::kepler_field,
         ),
         [1.0 + e, 0.0, 0.0, ((1.0 - e) / (1.0 + e)).sqrt()],
         (0.0, 6.0 * std::f64::consts::PI),

@@ -483,14 +483,7 @@ fn many_tstops_are_met_in_order() {
 fn kepler_e09_ten_orbits_from_apoapsis() {
     let e = 0.9_f64;
     let v = ((1.0 - e) / (1.0 + e)).sqrt();
-    let g = |y: &[f64], o: &mut [f64]| {
-        let r2 = y[0] * y[0] + y[1] * y[1];
-        let r3 = r2 * r2.sqrt();
-        o[0] = y[2];
-        o[1] = y[3];
-        o[2] = -y[0] / r3;
-        o[3] = -y[1] / r3;
-    };
+    let g = crate::common::kepler_field;
     let y0 = [1.0 + e, 0.0, 0.0, v];
     let t_end = 20.0 * std::f64::consts::PI;
     let problem = Problem::new(Semilinear::new(Zero::new(4), g), y0, (0.0, t_end)).unwrap();

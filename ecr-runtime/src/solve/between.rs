@@ -309,7 +309,7 @@ impl Trail {
 
     /// The answer's interpolant at `times` (inside the grid's interval around `t`) into `out`
     /// (`d` numbers per time), for a scan of the event functions inside a step: on the grid
-    /// points [`Grid::scan_range`] names, with the answer's slopes there (one evaluation of g
+    /// points [`Grid::scan_range`](super::interp::Grid::scan_range) names, with the answer's slopes there (one evaluation of g
     /// per point not evaluated yet). `false` where the trail has no interpolant there.
     ///
     /// # Errors

@@ -244,7 +244,9 @@ impl Grid<'_> {
             .extend(xs.iter().chain(times).map(|&x| (x - xs[0]) / scale));
         weights.w.clear();
         weights.w.resize(2 * m * times.len(), 0.0);
-        let (mut y, mut dy) = (vec![0.0; m], vec![0.0; m]);
+        // The basis data, one unit value or slope at a time (a scan reads at most three
+        // points).
+        let (mut y, mut dy) = ([0.0; 3], [0.0; 3]);
         for q in 0..2 * m {
             y.fill(0.0);
             dy.fill(0.0);
@@ -253,7 +255,7 @@ impl Grid<'_> {
             } else {
                 dy[q / 2] = 1.0;
             }
-            let newton = Newton::new(xs, &y, &dy, 1, 0, scale);
+            let newton = Newton::new(xs, &y[..m], &dy[..m], 1, 0, scale);
             for (j, &t) in times.iter().enumerate() {
                 weights.w[j * 2 * m + q] = newton.at(t);
             }

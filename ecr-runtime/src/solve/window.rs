@@ -298,11 +298,11 @@ pub(super) fn keep(
     let mut prev = start;
     // The event functions' samples inside each step: times and the answer's interpolant there.
     let d = start.answer.len();
-    let mut scan_t = [0.0; super::events::SCAN];
+    let mut scan_t = [0.0; super::hits::SCAN];
     let mut scan_y = if options.events.is_empty() {
         Vec::new()
     } else {
-        vec![0.0; super::events::SCAN * d]
+        vec![0.0; super::hits::SCAN * d]
     };
     let mut brackets = Vec::new();
     for (j, p) in points.iter().enumerate() {
@@ -327,7 +327,7 @@ pub(super) fn keep(
             let after = event.value(k, p.t, &p.answer)?;
             let before = ev_prev[k];
             ev_prev[k] = after;
-            super::events::brackets(
+            super::hits::brackets(
                 ctx,
                 runs,
                 (prev, p),
@@ -340,7 +340,7 @@ pub(super) fn keep(
                 &mut brackets,
             )?;
             for &bracket in &brackets {
-                let hit = super::events::hit(
+                let hit = super::hits::hit(
                     ctx,
                     runs,
                     (prev, p),
