@@ -278,7 +278,7 @@ fn moved_event_hits_keep_the_tolerance() {
     let kepler = Problem::new(
         Semilinear::new(
             ecr::runtime::operator::Zero::new(4),
-            crate::common::kepler_field,
+            crate::fields::kepler_field,
         ),
         [1.0 + e, 0.0, 0.0, ((1.0 - e) / (1.0 + e)).sqrt()],
         (0.0, 6.0 * std::f64::consts::PI),

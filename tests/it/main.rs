@@ -59,6 +59,7 @@ mod ecrp_properties;
 mod ensemble;
 #[cfg(feature = "cli")]
 mod ensemble_example;
+mod fields;
 #[cfg(feature = "problems")]
 mod fpu_tc;
 #[cfg(feature = "problems")]

@@ -483,7 +483,7 @@ fn many_tstops_are_met_in_order() {
 fn kepler_e09_ten_orbits_from_apoapsis() {
     let e = 0.9_f64;
     let v = ((1.0 - e) / (1.0 + e)).sqrt();
-    let g = crate::common::kepler_field;
+    let g = crate::fields::kepler_field;
     let y0 = [1.0 + e, 0.0, 0.0, v];
     let t_end = 20.0 * std::f64::consts::PI;
     let problem = Problem::new(Semilinear::new(Zero::new(4), g), y0, (0.0, t_end)).unwrap();
