@@ -157,9 +157,10 @@ pub(super) fn hit(
             trail.slopes(stencil.range(), runs, cost)?;
             let slopes = trail.slopes_at(stencil.range());
             let grid = trail.grid(d);
+            let interpolant = grid.interpolant(stencil, slopes, false);
             let mut y = vec![0.0; d];
             let mut on_interp = |t: f64| {
-                grid.states_at(std::iter::once(t), stencil, slopes, false, &mut y);
+                interpolant.at(t, &mut y);
                 event.value(k, t, &y)
             };
             let t0 = event.locate(lo, hi, &mut on_interp)?;

@@ -146,6 +146,18 @@ impl Newton {
     }
 }
 
+/// One run's Hermite interpolant on a stencil, a component at a time ([`Grid::interpolant`]).
+pub(super) struct Interpolant(Vec<Newton>);
+
+impl Interpolant {
+    /// The state at `t` into `out`.
+    pub(super) fn at(&self, t: f64, out: &mut [f64]) {
+        for (o, newton) in out.iter_mut().zip(&self.0) {
+            *o = newton.at(t);
+        }
+    }
+}
+
 impl Grid<'_> {
     /// The number of grid points.
     pub(super) fn len(&self) -> usize {
@@ -189,6 +201,21 @@ impl Grid<'_> {
         out: &mut [f64],
     ) {
         let d = self.d;
+        let interpolant = self.interpolant(stencil, slopes, check);
+        for (j, t) in times.enumerate() {
+            interpolant.at(t, &mut out[j * d..(j + 1) * d]);
+        }
+    }
+
+    /// One run's interpolant on `stencil` (the check's with `check`, else the answer's), built
+    /// once for the values at many times (an event's zero located on it).
+    pub(super) fn interpolant(
+        &self,
+        stencil: Stencil,
+        slopes: (&[f64], &[f64]),
+        check: bool,
+    ) -> Interpolant {
+        let d = self.d;
         let Stencil { first, first_x } = stencil;
         let more = POINTS + 1;
         let xs = &self.t[first..first + POINTS];
@@ -197,12 +224,11 @@ impl Grid<'_> {
         let y = &states[first * d..];
         let shift = (first - first_x) * d;
         let dy = &if check { slopes.1 } else { slopes.0 }[shift..];
-        for i in 0..d {
-            let newton = Newton::new(xs, y, dy, d, i, scale);
-            for (j, t) in times.clone().enumerate() {
-                out[j * d + i] = newton.at(t);
-            }
-        }
+        Interpolant(
+            (0..d)
+                .map(|i| Newton::new(xs, y, dy, d, i, scale))
+                .collect(),
+        )
     }
 
     /// The grid points an event scan at `t` reads: the interval holding t and the point after
