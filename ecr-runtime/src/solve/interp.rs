@@ -191,7 +191,7 @@ impl Grid<'_> {
 
     /// One run's interpolant (the check's with `check`, else the answer's) at the times
     /// `times` (in the interval of `stencil`), state after state into `out`: a start for the
-    /// stage iterations of a step.
+    /// stage iterations of a step. A component at a time, without allocating.
     pub(super) fn states_at(
         &self,
         times: impl Iterator<Item = f64> + Clone,
@@ -201,9 +201,11 @@ impl Grid<'_> {
         out: &mut [f64],
     ) {
         let d = self.d;
-        let interpolant = self.interpolant(stencil, slopes, check);
-        for (j, t) in times.enumerate() {
-            interpolant.at(t, &mut out[j * d..(j + 1) * d]);
+        for i in 0..d {
+            let newton = self.component(stencil, slopes, check, i);
+            for (j, t) in times.clone().enumerate() {
+                out[j * d + i] = newton.at(t);
+            }
         }
     }
 
@@ -215,6 +217,21 @@ impl Grid<'_> {
         slopes: (&[f64], &[f64]),
         check: bool,
     ) -> Interpolant {
+        Interpolant(
+            (0..self.d)
+                .map(|i| self.component(stencil, slopes, check, i))
+                .collect(),
+        )
+    }
+
+    /// Component `i` of one run's interpolant on `stencil`.
+    fn component(
+        &self,
+        stencil: Stencil,
+        slopes: (&[f64], &[f64]),
+        check: bool,
+        i: usize,
+    ) -> Newton {
         let d = self.d;
         let Stencil { first, first_x } = stencil;
         let more = POINTS + 1;
@@ -224,11 +241,7 @@ impl Grid<'_> {
         let y = &states[first * d..];
         let shift = (first - first_x) * d;
         let dy = &if check { slopes.1 } else { slopes.0 }[shift..];
-        Interpolant(
-            (0..d)
-                .map(|i| Newton::new(xs, y, dy, d, i, scale))
-                .collect(),
-        )
+        Newton::new(xs, y, dy, d, i, scale)
     }
 
     /// The grid points an event scan at `t` reads: the interval holding t and the point after
