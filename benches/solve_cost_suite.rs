@@ -32,7 +32,7 @@ mod common_suite;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
-use common_suite::measure::{self, Kind, Row, median, worst_unit_error};
+use common_suite::measure::{self, Kind, Row, fastest, median, quantile, worst_unit_error};
 use common_suite::stored::{self, Stored};
 use common_suite::{Case, Reference, TOLERANCES, cases};
 use ecr::runtime::solve::Options;
@@ -45,18 +45,6 @@ struct Fixed {
     g_evals: usize,
     /// Its error in the suite's unit (error/tol = unit / tol).
     unit: f64,
-}
-
-/// The fastest of `rounds` thread-CPU timings of `f` (seconds) and the last value.
-fn fastest<T>(rounds: usize, mut f: impl FnMut() -> T) -> (f64, T) {
-    let mut best = f64::INFINITY;
-    let mut out = None;
-    for _ in 0..rounds {
-        let (t, v) = measure::cpu_timed(&mut f);
-        best = best.min(t);
-        out = Some(v);
-    }
-    (best, out.expect("at least one round"))
 }
 
 fn fixed_options(r: usize, h: f64) -> Options {
@@ -256,15 +244,6 @@ fn summary(pairs: &[Pair]) -> String {
         .unwrap();
     }
     s
-}
-
-fn quantile(v: &[f64], q: f64) -> f64 {
-    let mut v = v.to_vec();
-    v.sort_by(f64::total_cmp);
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v[((v.len() - 1) as f64 * q).round() as usize]
 }
 
 fn main() {

@@ -207,6 +207,47 @@ fn dop853_one_call_over_the_interval() {
     ));
 }
 
+/// The crate's dense output (one call, values at the multiples of dx): every output, t_end's
+/// included, within a few tolerances of Duffing's exact solution. Called over [0, t_end]
+/// itself, ode_solvers 0.6.2 extrapolates its last output from the step holding the output
+/// before it (on the suite's Lotka–Volterra, 1e−2 off at t_end whatever the tolerance), and
+/// its output at t0 is the state after the first step; `integrate_dense` corrects both.
+#[test]
+fn dop853_dense_output_at_every_spacing_point() {
+    let duffing = duffing();
+    for tol in [1e-6, 1e-9, 1e-12] {
+        let dop = Dop853::new(duffing.system().unwrap(), tol, tol).unwrap();
+        let mut y = duffing.initial_value();
+        let (ts, ys, stats) = dop.integrate_dense(0.0, 10.0, 0.5, &mut y).unwrap();
+        assert_eq!(ts.len(), 21, "{ts:?}");
+        assert!((ts[20] - 10.0).abs() <= 1e-12, "{ts:?}");
+        let mut worst: f64 = 0.0;
+        assert_eq!(ys[0], duffing.initial_value());
+        for (t, v) in ts.iter().zip(&ys) {
+            let exact = duffing.exact(*t).unwrap();
+            worst = worst.max((v[0] - exact[0]).abs().max((v[1] - exact[1]).abs()));
+        }
+        println!(
+            "DOP853 dense output, rtol = atol = {tol:e}: worst error {worst:.2e} over 21 outputs, \
+             {} f-evaluations",
+            stats.f_evals
+        );
+        assert!(worst <= 100.0 * tol, "{tol:e}: {worst:e}");
+        assert_eq!(y, ys[20]);
+    }
+    let mut y = duffing.initial_value();
+    let dop = Dop853::new(duffing.system().unwrap(), 1e-8, 1e-8).unwrap();
+    assert!(matches!(
+        dop.integrate_dense(0.0, 10.0, 0.0, &mut y),
+        Err(Error::InvalidParameter(_))
+    ));
+    // A spacing that does not divide the span leaves t_end without an output: an error.
+    assert!(matches!(
+        dop.integrate_dense(0.0, 10.0, 0.3, &mut y),
+        Err(Error::Numerical(_))
+    ));
+}
+
 /// The fixed-size (SVector) and heap (DVector) paths of the crate solve the same problem:
 /// d = 5 is not in `FIXED_DIMS`, d = 4 is. Two decoupled cubic oscillators, padded by a
 /// constant component to d = 5, agree to the tolerance (not to the bit: the code's error

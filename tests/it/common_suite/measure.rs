@@ -32,6 +32,18 @@ pub fn cpu_timed<T>(f: impl FnOnce() -> T) -> (f64, T) {
     (thread_cpu_seconds() - start, v)
 }
 
+/// The fastest of `rounds` thread-CPU timings of `f` (seconds) and the last value.
+pub fn fastest<T>(rounds: usize, mut f: impl FnMut() -> T) -> (f64, T) {
+    let mut best = f64::INFINITY;
+    let mut out = None;
+    for _ in 0..rounds {
+        let (t, v) = cpu_timed(&mut f);
+        best = best.min(t);
+        out = Some(v);
+    }
+    (best, out.expect("at least one round"))
+}
+
 /// How a solve ended.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Kind {
@@ -111,9 +123,20 @@ pub fn worst_unit_error(
     refs: &BTreeMap<String, Stored>,
     sol: &Solution,
 ) -> (f64, f64) {
-    let reference = reference_at(case, refs, &sol.t);
+    worst_unit_error_at(case, refs, &sol.t, &sol.y)
+}
+
+/// The largest [`unit_error`] over the states `y` at the times `t` and where it is (NaN
+/// without any).
+pub fn worst_unit_error_at(
+    case: &Case,
+    refs: &BTreeMap<String, Stored>,
+    t: &[f64],
+    y: &[Vec<f64>],
+) -> (f64, f64) {
+    let reference = reference_at(case, refs, t);
     let mut worst = (f64::NAN, f64::NAN);
-    for ((t, y), r) in sol.t.iter().zip(&sol.y).zip(&reference) {
+    for ((t, y), r) in t.iter().zip(y).zip(&reference) {
         let e = unit_error(y, r);
         if worst.0.is_nan() || e > worst.0 || e.is_nan() {
             worst = (e, *t);
@@ -196,4 +219,14 @@ pub fn median(mut v: Vec<f64>) -> f64 {
         n if n % 2 == 1 => v[n / 2],
         n => 0.5 * (v[n / 2 - 1] + v[n / 2]),
     }
+}
+
+/// The q-quantile (the nearest rank; NaN of nothing).
+pub fn quantile(v: &[f64], q: f64) -> f64 {
+    let mut v = v.to_vec();
+    v.sort_by(f64::total_cmp);
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v[((v.len() - 1) as f64 * q).round() as usize]
 }

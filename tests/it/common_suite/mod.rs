@@ -76,7 +76,7 @@ pub struct Case {
     /// An accurate fixed run, ECrP (r, h): what the sensitivity to one ulp of y₀ is measured
     /// with (`tests/it/solve_suite.rs`, `one_ulp_of_y0_moves_the_sensitive_cases`).
     pub fine: (usize, f64),
-    solver: fn(&Case, &Options) -> Outcome,
+    solver: fn(&Case, Request<'_>) -> Reply,
     /// The right-hand side Ay + g(y) of the f64 system.
     field: fn(&[f64]) -> Vec<f64>,
 }
@@ -88,7 +88,23 @@ impl Case {
             Some(ts) => options.t_eval(ts.clone()),
             None => options,
         };
-        (self.solver)(self, &options)
+        match (self.solver)(self, Request::Solve(&options)) {
+            Reply::Solved(outcome) => outcome,
+            #[cfg(feature = "baselines")]
+            Reply::Peer(_) => unreachable!("a solve's request answered by the peer"),
+        }
+    }
+
+    /// DOP853 (`ecr::baselines`, one call of `ode_solvers` as its users make it) with
+    /// rtol = atol = `tol` over the case's span: its states at the case's output times from
+    /// the crate's dense output at their common spacing (`None` where the output times have
+    /// none, see [`peer_spacing`]), or at its accepted steps for a case without output times.
+    #[cfg(feature = "baselines")]
+    pub fn dop853(&self, tol: f64) -> Result<PeerRun, String> {
+        match (self.solver)(self, Request::Dop853(tol)) {
+            Reply::Peer(run) => run,
+            Reply::Solved(_) => unreachable!("the peer's request answered by a solve"),
+        }
     }
 
     /// Solves the case from `y0` instead of its own initial value (same system, span and
@@ -150,9 +166,137 @@ fn field<S: System>(system: S, y: &[f64]) -> Vec<f64> {
     f.iter().zip(&g).map(|(a, b)| a + b).collect()
 }
 
-fn run<S: System>(system: S, case: &Case, options: &Options) -> Outcome {
-    let problem = Problem::new(system, case.y0.clone(), case.span).map_err(SolveError::Failed)?;
-    problem.solve(options).map(Solution::into_data)
+/// What a case's solver is asked to do: a solve, or (for the comparisons) a peer's run.
+#[derive(Clone, Copy)]
+pub enum Request<'a> {
+    Solve(&'a Options),
+    /// DOP853 with rtol = atol = the value.
+    #[cfg(feature = "baselines")]
+    Dop853(f64),
+}
+
+/// The answer to a [`Request`].
+pub enum Reply {
+    Solved(Outcome),
+    #[cfg(feature = "baselines")]
+    Peer(Result<PeerRun, String>),
+}
+
+/// A peer's run of a case: its states at its output times and its evaluations of the
+/// right-hand side.
+#[cfg(feature = "baselines")]
+pub struct PeerRun {
+    pub t: Vec<f64>,
+    pub y: Vec<Vec<f64>>,
+    pub f_evals: usize,
+}
+
+fn run<S: System>(system: S, case: &Case, request: Request<'_>) -> Reply {
+    match request {
+        Request::Solve(options) => Reply::Solved(
+            Problem::new(system, case.y0.clone(), case.span)
+                .map_err(SolveError::Failed)
+                .and_then(|problem| problem.solve(options).map(Solution::into_data)),
+        ),
+        #[cfg(feature = "baselines")]
+        Request::Dop853(tol) => Reply::Peer(dop853(system, case, tol)),
+    }
+}
+
+/// The spacing dx of the output times `ts` from t0 (every t_k a multiple of dx from t0 to
+/// within 1e−9 dx, the last at t_end): the largest of (t_1 − t0)/m over m = 1 … 64 that fits;
+/// `None` if none does.
+pub fn peer_spacing(t0: f64, t_end: f64, ts: &[f64]) -> Option<f64> {
+    let first = *ts.first()?;
+    if *ts.last()? != t_end {
+        return None;
+    }
+    let fits = |dx: f64| {
+        std::iter::once(t_end).chain(ts.iter().copied()).all(|t| {
+            let k = ((t - t0) / dx).round();
+            k >= 1.0 && ((t - t0) - k * dx).abs() <= 1e-9 * dx
+        })
+    };
+    let mut gaps = vec![first - t0];
+    gaps.extend(ts.windows(2).map(|w| w[1] - w[0]));
+    let smallest = gaps.iter().copied().fold(f64::INFINITY, f64::min);
+    (1..=64)
+        .map(|m| smallest / m as f64)
+        .find(|&dx| dx > 0.0 && fits(dx))
+}
+
+#[cfg(feature = "baselines")]
+fn dop853<S: System>(system: S, case: &Case, tol: f64) -> Result<PeerRun, String> {
+    use ecr::baselines::dop853::Dop853;
+    let (t0, t_end) = case.span;
+    let peer = Dop853::new(system, tol, tol).map_err(|e| e.to_string())?;
+    let mut y = case.y0.clone();
+    match &case.t_eval {
+        None => {
+            let mut t = Vec::new();
+            let mut ys = Vec::new();
+            let stats = peer
+                .integrate_observed(t0, t_end, &mut y, &mut |s, v| {
+                    t.push(s);
+                    ys.push(v.to_vec());
+                })
+                .map_err(|e| e.to_string())?;
+            Ok(PeerRun {
+                t,
+                y: ys,
+                f_evals: stats.f_evals,
+            })
+        }
+        Some(ts) => {
+            let spacing = peer_spacing(t0, t_end, ts);
+            // Output times without a common spacing (kepler_passage's, just before t_end):
+            // where the reference is exact at any time, the dense outputs at the smallest gap
+            // dividing the span, over the stretch of the case's output times.
+            let dx = match (spacing, &case.reference) {
+                (Some(dx), _) => dx,
+                (None, Reference::Exact(_)) => {
+                    let gap = ts
+                        .windows(2)
+                        .map(|w| w[1] - w[0])
+                        .fold(ts[0] - t0, f64::min);
+                    (t_end - t0) / ((t_end - t0) / gap).ceil()
+                }
+                (None, _) => {
+                    return Err(format!(
+                        "{}: no common spacing of the output times",
+                        case.name
+                    ));
+                }
+            };
+            let (out_t, out_y, stats) = peer
+                .integrate_dense(t0, t_end, dx, &mut y)
+                .map_err(|e| e.to_string())?;
+            let (t, picked) = if spacing.is_some() {
+                // The case's output times among the dense outputs (theirs, to within the
+                // crate's accumulated rounding of t += dx).
+                let mut picked = Vec::with_capacity(ts.len());
+                for &t in ts {
+                    let k = out_t
+                        .iter()
+                        .position(|&s| (s - t).abs() <= 1e-9 * dx)
+                        .ok_or_else(|| format!("{}: no dense output at t = {t}", case.name))?;
+                    picked.push(out_y[k].clone());
+                }
+                (ts.clone(), picked)
+            } else {
+                out_t
+                    .into_iter()
+                    .zip(out_y)
+                    .filter(|(t, _)| *t >= ts[0] - dx)
+                    .unzip()
+            };
+            Ok(PeerRun {
+                t,
+                y: picked,
+                f_evals: stats.f_evals,
+            })
+        }
+    }
 }
 
 /// Every case of the suite.
