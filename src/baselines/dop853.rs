@@ -377,7 +377,7 @@ impl<S: System> Dop853<S> {
             // within that sum's rounding, and it is missing where dx does not divide the span.
             *ts = xs;
             let last = ts.last().copied().unwrap_or(f64::NAN);
-            if !((last - t_end).abs() <= 1e-9 * (t_end.abs() + dx)) {
+            if last.is_nan() || (last - t_end).abs() > 1e-9 * (t_end.abs() + dx) {
                 return Err(Error::Numerical(format!(
                     "DOP853's dense output ends at t = {last:e}, not at t_end = {t_end:e} \
                      (dx must divide the span)"

@@ -175,7 +175,9 @@ pub enum Request<'a> {
     Dop853(f64),
 }
 
-/// The answer to a [`Request`].
+/// The answer to a [`Request`] (made once per solve: the size of a `Solution` by value is
+/// no cost here).
+#[allow(clippy::large_enum_variant)]
 pub enum Reply {
     Solved(Outcome),
     #[cfg(feature = "baselines")]
