@@ -33,7 +33,7 @@ use std::fmt::Write as _;
 
 use common_suite::measure::{self, Kind, Row, fastest, median, quantile, worst_unit_error_at};
 use common_suite::stored::{self, Stored};
-use common_suite::{Case, Reference, TOLERANCES, cases};
+use common_suite::{Case, TOLERANCES};
 use ecr::runtime::solve::Options;
 
 /// The problems whose solutions oscillate (orbits, oscillators, waves): the "oscillatory
@@ -219,53 +219,23 @@ fn summary(pairs: &[Pair]) -> String {
     writeln!(s, "{}", line("oscillatory", &osc)).unwrap();
     writeln!(s, "{}", line("the others", &rest)).unwrap();
     writeln!(s, "{}", line("all", &all)).unwrap();
-    let mut names: Vec<&str> = pairs.iter().map(|p| p.row.case).collect();
-    names.dedup();
-    writeln!(
-        s,
-        "\n| problem | median ratio of the Ok | largest | pairs |"
-    )
-    .unwrap();
-    writeln!(s, "|---|---|---|---|").unwrap();
-    for name in names {
-        let v: Vec<f64> = pairs
+    s.push_str(&measure::per_problem_table(
+        pairs
             .iter()
-            .filter(|p| p.row.case == name && p.row.kind == Kind::Ok)
-            .filter_map(Pair::ratio)
-            .collect();
-        writeln!(
-            s,
-            "| {name} | {:.2} | {:.2} | {} |",
-            median(v.clone()),
-            v.iter().copied().fold(f64::NAN, f64::max),
-            v.len()
-        )
-        .unwrap();
-    }
+            .filter(|p| p.row.kind == Kind::Ok)
+            .filter_map(|p| Some((p.row.case, p.ratio()?))),
+    ));
     s
 }
 
 fn main() {
-    let names: Vec<String> = std::env::args()
-        .skip(1)
-        .filter(|a| !a.starts_with('-'))
-        .collect();
     let rounds: usize = std::env::var("ECR_COST_ROUNDS")
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or(3);
     let refs = stored::load();
     let mut pairs = Vec::new();
-    for case in cases() {
-        if !names.is_empty() && !names.iter().any(|n| n == case.name) {
-            continue;
-        }
-        if let Reference::Taylor { .. } | Reference::Runs = case.reference {
-            let s = refs
-                .get(case.name)
-                .unwrap_or_else(|| panic!("{}: no stored reference", case.name));
-            assert_eq!(s.hash, case.hash(), "{}: stale reference", case.name);
-        }
+    for case in measure::selected_cases(&refs) {
         let start = std::time::Instant::now();
         let measured = measure_case(&case, &refs, rounds);
         eprintln!(

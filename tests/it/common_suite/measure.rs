@@ -230,3 +230,56 @@ pub fn quantile(v: &[f64], q: f64) -> f64 {
     }
     v[((v.len() - 1) as f64 * q).round() as usize]
 }
+
+/// The cases named on the command line (all without names), each with a stored reference
+/// checked against the case's hash (for the benches over the suite).
+///
+/// # Panics
+/// On a missing or stale stored reference.
+pub fn selected_cases(refs: &BTreeMap<String, Stored>) -> Vec<Case> {
+    let names: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| !a.starts_with('-'))
+        .collect();
+    let mut selected = Vec::new();
+    for case in super::cases() {
+        if !names.is_empty() && !names.iter().any(|n| n == case.name) {
+            continue;
+        }
+        if let Reference::Taylor { .. } | Reference::Runs = case.reference {
+            let s = refs
+                .get(case.name)
+                .unwrap_or_else(|| panic!("{}: no stored reference", case.name));
+            assert_eq!(s.hash, case.hash(), "{}: stale reference", case.name);
+        }
+        selected.push(case);
+    }
+    selected
+}
+
+/// The markdown table of the median and largest ratio per problem, from (problem, ratio)
+/// in the suite's order.
+pub fn per_problem_table<'a>(ratios: impl Iterator<Item = (&'a str, f64)> + Clone) -> String {
+    use std::fmt::Write as _;
+    let mut names: Vec<&str> = ratios.clone().map(|(n, _)| n).collect();
+    names.dedup();
+    let mut s = String::from(
+        "\n| problem | median ratio of the Ok | largest | pairs |\n|---|---|---|---|\n",
+    );
+    for name in names {
+        let v: Vec<f64> = ratios
+            .clone()
+            .filter(|(n, _)| *n == name)
+            .map(|(_, r)| r)
+            .collect();
+        writeln!(
+            s,
+            "| {name} | {:.2} | {:.2} | {} |",
+            median(v.clone()),
+            v.iter().copied().fold(f64::NAN, f64::max),
+            v.len()
+        )
+        .unwrap();
+    }
+    s
+}

@@ -209,22 +209,26 @@ fn run<S: System>(system: S, case: &Case, request: Request<'_>) -> Reply {
 /// within 1e−9 dx, the last at t_end): the largest of (t_1 − t0)/m over m = 1 … 64 that fits;
 /// `None` if none does.
 pub fn peer_spacing(t0: f64, t_end: f64, ts: &[f64]) -> Option<f64> {
-    let first = *ts.first()?;
     if *ts.last()? != t_end {
         return None;
     }
     let fits = |dx: f64| {
-        std::iter::once(t_end).chain(ts.iter().copied()).all(|t| {
+        ts.iter().all(|&t| {
             let k = ((t - t0) / dx).round();
             k >= 1.0 && ((t - t0) - k * dx).abs() <= 1e-9 * dx
         })
     };
-    let mut gaps = vec![first - t0];
-    gaps.extend(ts.windows(2).map(|w| w[1] - w[0]));
-    let smallest = gaps.iter().copied().fold(f64::INFINITY, f64::min);
+    let smallest = smallest_gap(t0, ts);
     (1..=64)
         .map(|m| smallest / m as f64)
         .find(|&dx| dx > 0.0 && fits(dx))
+}
+
+/// The smallest of t_1 − t0 and the gaps between the output times `ts`.
+fn smallest_gap(t0: f64, ts: &[f64]) -> f64 {
+    ts.windows(2)
+        .map(|w| w[1] - w[0])
+        .fold(ts[0] - t0, f64::min)
 }
 
 #[cfg(feature = "baselines")]
@@ -257,11 +261,7 @@ fn dop853<S: System>(system: S, case: &Case, tol: f64) -> Result<PeerRun, String
             let dx = match (spacing, &case.reference) {
                 (Some(dx), _) => dx,
                 (None, Reference::Exact(_)) => {
-                    let gap = ts
-                        .windows(2)
-                        .map(|w| w[1] - w[0])
-                        .fold(ts[0] - t0, f64::min);
-                    (t_end - t0) / ((t_end - t0) / gap).ceil()
+                    (t_end - t0) / ((t_end - t0) / smallest_gap(t0, ts)).ceil()
                 }
                 (None, _) => {
                     return Err(format!(
