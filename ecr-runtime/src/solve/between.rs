@@ -233,7 +233,10 @@ pub(super) fn value_between(
     if !verified || which == Which::Answer {
         return Ok(0.0);
     }
-    let e = super::runs::estimate(tolerance, unit, out, &yc, n + 1);
+    // The runs' difference, and the share of the tolerance their stage iterations stop at
+    // (`between_settings`): an iteration error both runs share from like seeds would not show
+    // in their difference.
+    let e = super::runs::estimate(tolerance, unit, out, &yc, n + 1) + super::BETWEEN_SWEEP_SHARE;
     if e.is_nan() {
         return Err(Error::NonFinite(
             "the estimate of the error between grid points",

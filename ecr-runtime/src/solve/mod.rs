@@ -259,7 +259,7 @@ impl<S: System> Problem<S> {
                 ),
                 solve_stepper_bytes(system, r, check, &settings),
             )?;
-            let between = between_banks(options.rtol, options.atol, check);
+            let between = between_settings(settings, (options.rtol, options.atol), check);
             let runs = runs::PairRuns::new(system, r, check, h, settings, between, cache)?;
             Ok(Box::new(runs))
         };
@@ -416,6 +416,39 @@ pub(super) fn between_banks(
         BankArithmetic::StepExtended
     }
 }
+
+/// The stage solver's settings of the partial steps to values between grid points: the
+/// runs' `settings` started from the interpolant or the grid state (no predictor), with
+/// [`between_banks`], and in a verified solve with a relative tolerance the stage iteration
+/// stopped at [`BETWEEN_SWEEP_SHARE`] of the tolerance, each component in its own scale
+/// ([`StageScale::PerComponent`](crate::stepper::StageScale::PerComponent) with the floor
+/// atol/rtol: an update of at most `BETWEEN_SWEEP_SHARE · (atol + rtol·|Yᵢ|)` in every
+/// component), not at round-off: nothing carries a value between grid points on, so round-off
+/// buys nothing there, and from a seed a few sweeps reach the share. A user's own looser
+/// iteration tolerance, or per-component scale, is kept.
+pub(super) fn between_settings(
+    settings: crate::stepper::SolverSettings,
+    (rtol, atol): (f64, f64),
+    verified: bool,
+) -> crate::stepper::SolverSettings {
+    use crate::stepper::{Predictor, SolverSettings, StageScale};
+    let mut out = SolverSettings {
+        predictor: Predictor::Constant,
+        banks: between_banks(rtol, atol, verified),
+        ..settings
+    };
+    if verified && rtol > 0.0 && !matches!(settings.scale, StageScale::PerComponent { .. }) {
+        out.tolerance = settings.tolerance.max(BETWEEN_SWEEP_SHARE * rtol);
+        out.scale = StageScale::PerComponent {
+            atol: (atol / rtol).max(f64::MIN_POSITIVE),
+        };
+    }
+    out
+}
+
+/// The share of the tolerance a value between grid points' stage iteration stops at
+/// ([`between_settings`]); the value's estimate counts it in ([`between::value_between`]).
+pub(super) const BETWEEN_SWEEP_SHARE: f64 = 1e-2;
 
 /// The bytes the steppers of one solve of `system` at order 2r hold at their peak, or `None`
 /// if the count overflows a `usize`: the answer (s = r) and its check (ECr−1P on r + 1

@@ -12,8 +12,8 @@ use std::sync::Arc;
 use super::SolveCache;
 use super::between::Which;
 use crate::error::{Error, Result};
-use crate::operator::{BankArithmetic, LinearOperator};
-use crate::stepper::{EcStepper, Predictor, RuntimeKernel, SolverSettings, StepReport};
+use crate::operator::LinearOperator;
+use crate::stepper::{EcStepper, RuntimeKernel, SolverSettings, StepReport};
 use crate::system::System;
 use crate::tables::QuadratureKind;
 
@@ -208,8 +208,9 @@ pub(super) struct PairRuns<'a, S: System> {
     local: Option<EcStepper<&'a S>>,
     r: usize,
     settings: SolverSettings,
-    /// The banks' arithmetic of the steps to values between grid points.
-    between_banks: BankArithmetic,
+    /// The stage solver's settings of the steps to values between grid points
+    /// ([`between_settings`](super::between_settings)).
+    between_settings: SolverSettings,
     cache: Arc<SolveCache<S>>,
     slope_scratch: Vec<f64>,
     stiffness: Option<Vec<f64>>,
@@ -223,7 +224,7 @@ pub(super) struct PairRuns<'a, S: System> {
 
 impl<'a, S: System> PairRuns<'a, S> {
     /// The answer of order 2r at step h and, with `check`, its check; the steps to values
-    /// between grid points with banks in `between_banks` ([`between_banks`](super::between_banks)).
+    /// between grid points with `between_settings` ([`between_settings`](super::between_settings)).
     ///
     /// # Errors
     /// What building the steppers reports (r out of range, the banks).
@@ -233,7 +234,7 @@ impl<'a, S: System> PairRuns<'a, S> {
         check: bool,
         h: f64,
         settings: SolverSettings,
-        between_banks: BankArithmetic,
+        between_settings: SolverSettings,
         cache: &Arc<SolveCache<S>>,
     ) -> Result<Self> {
         let answer = EcStepper::from_kernel_cached(
@@ -262,7 +263,7 @@ impl<'a, S: System> PairRuns<'a, S> {
             local: None,
             r,
             settings,
-            between_banks,
+            between_settings,
             cache: Arc::clone(cache),
             slope_scratch: Vec::new(),
             stiffness: None,
@@ -288,11 +289,7 @@ impl<'a, S: System> PairRuns<'a, S> {
 
     /// The steppers for values between grid points, built at step `dt` the first time.
     fn between(&mut self, dt: f64) -> Result<&mut (EcStepper<&'a S>, Option<EcStepper<&'a S>>)> {
-        let settings = SolverSettings {
-            predictor: Predictor::Constant,
-            banks: self.between_banks,
-            ..self.settings
-        };
+        let settings = self.between_settings;
         if self.between.is_none() {
             let cache = Some(Arc::clone(&self.cache));
             let answer = EcStepper::from_kernel_cached(

@@ -403,11 +403,7 @@ impl<S: System> Solution<S> {
             }
             _ => None,
         };
-        let settings = SolverSettings {
-            predictor: crate::stepper::Predictor::Constant,
-            banks: super::between_banks(rtol, atol, check.is_some()),
-            ..dense.settings
-        };
+        let settings = super::between_settings(dense.settings, (rtol, atol), check.is_some());
         let check_k = check.map_or(answer, |c| &c[k * d..(k + 1) * d]);
         let mut cost = super::runs::Cost::default();
         let e = super::between::value_between(
@@ -477,7 +473,7 @@ impl<S: System> super::between::PartialSteps for FreshSteps<'_, S> {
             self.check && which != super::between::Which::Answer,
             dt,
             self.settings,
-            self.settings.banks,
+            self.settings,
             &cache,
         )?;
         if let Some(seed) = seed.filter(|_| self.seeded) {
