@@ -572,7 +572,7 @@ fn at_between_grid_points_takes_no_steps() {
 /// 10⁴ unevenly spaced output times cost little more than the solve without them (each took
 /// a step with its own φ-bank: 478× the run with a fixed step, 592× with a tolerance).
 #[test]
-#[ignore = "target not met: 11.7x the g-evaluations of the solve without output times (Duffing omega = 20, EC6P at h*omega = 0.8: the grid's Hermite interpolant holds at few outputs, the others step both runs); cargo test -p ecr --test it many_output_times_cost_little -- --ignored --nocapture"]
+#[ignore = "target not met: 17.1x the g-evaluations of the solve without output times on 2026-12-03 (24.6x at 2f5b7cf, 20.7x at 725d8c0; Duffing omega = 20, EC6P at h*omega = 0.8: the grid's Hermite interpolant holds at few outputs, the others step both runs); cargo test -p ecr --test it many_output_times_cost_little -- --ignored --nocapture"]
 fn many_output_times_cost_little() {
     let d = Duffing::new(20.0, 0.07).unwrap();
     let problem = Problem::new(d.system().unwrap(), d.initial_value(), (0.0, 100.0)).unwrap();

@@ -197,6 +197,155 @@ pub(super) fn seed_stepper<S: System>(
     stepper.seed(buf)
 }
 
+/// How far past the end of the answer's step before a seed may reach (as a fraction of that
+/// step): the polynomial through its values is extrapolated no further.
+const SEED_REACH: f64 = 1.25;
+
+/// One step of length `dt` to a value between grid points of the methods `which` names,
+/// the answer's from `ya` into `oa` and the check's from `yc` into `oc` (what is not stepped
+/// is left as the start), counted as steps between grid points. Each stage iteration starts
+/// from the answer's completed step from the same state where there is one — the one just
+/// taken, for the check, or `last` (its length) that the answer's stepper holds from before,
+/// a search's previous trial — through [`seed_from_step`]; else from `seed` (the grid's
+/// interpolant), else from the grid state. Returns the length of the completed step the
+/// answer's stepper holds afterwards (`last` where it did not step).
+///
+/// # Errors
+/// What a stepper reports.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn value_steps<S: System>(
+    (answer, check): (&mut EcStepper<&S>, Option<&mut EcStepper<&S>>),
+    (ya, yc): (&[f64], &[f64]),
+    dt: f64,
+    (oa, oc): (&mut [f64], &mut [f64]),
+    (seed, last): (Option<Seed<'_>>, Option<f64>),
+    which: Which,
+    cost: &mut Cost,
+    buf: &mut Vec<f64>,
+) -> Result<Option<f64>> {
+    use crate::stepper::Kernel;
+    oa.copy_from_slice(ya);
+    oc.copy_from_slice(yc);
+    let mut held = last;
+    if which != Which::Check {
+        let own = held.is_some_and(|dt0| {
+            let nodes = answer.kernel().nodes();
+            seed_from_step(answer, dt / dt0, nodes, (ya, ya), buf)
+        });
+        if own {
+            answer.seed(buf)?;
+        } else if let Some(seed) = seed {
+            seed_stepper(answer, seed, false, buf)?;
+        }
+        let rep = answer.step(oa)?;
+        held = Some(dt);
+        cost.dense_steps += 1;
+        cost.dense_g_evals += rep.g_evals;
+    }
+    if let Some(c) = check {
+        let own = held.is_some_and(|dt0| {
+            let nodes = c.kernel().nodes();
+            seed_from_step(answer, dt / dt0, nodes, (ya, yc), buf)
+        });
+        if own {
+            c.seed(buf)?;
+        } else if let Some(seed) = seed {
+            seed_stepper(c, seed, true, buf)?;
+        }
+        let rep = c.step(oc)?;
+        cost.dense_steps += 1;
+        cost.dense_g_evals += rep.g_evals;
+    }
+    Ok(held)
+}
+
+/// The seed, into `out`, of a step from `from` whose nodes are `nodes` (fractions of its
+/// length), from the answer's completed step from the grid state `ya`: the polynomial
+/// through that step's values — `ya` at 0, its stages at its nodes, its end at 1 — at the
+/// fractions `ratio · c`, moved by `from − ya` (`from` is `ya` for the answer, the check's
+/// grid state for the check). For a zero linear part that is the answer's own collocation
+/// polynomial; a step from the same state to a nearby length, or the check's over the same
+/// step, starts within its own difference from it. `false` (nothing that counts written)
+/// where the stepper keeps no stages, its step did not start from `ya` (another grid
+/// state), or the fractions reach past [`SEED_REACH`].
+fn seed_from_step<S: System>(
+    answer: &EcStepper<&S>,
+    ratio: f64,
+    nodes: &[f64],
+    (ya, from): (&[f64], &[f64]),
+    out: &mut Vec<f64>,
+) -> bool {
+    use crate::stepper::Kernel;
+    let Some((y0, stages, y1)) = answer.last_step() else {
+        return false;
+    };
+    let d = from.len();
+    let reach = ratio * nodes.iter().fold(0.0f64, |m, &c| m.max(c));
+    if !(ratio > 0.0 && reach <= SEED_REACH) || y0.len() != d || y0 != ya {
+        return false;
+    }
+    // The interpolation points: 0, the stages' nodes strictly inside (0, 1), 1; `at[k]` the
+    // offset of point k's value in `stages` (none for the ends).
+    let (mut xs, mut at) = ([0.0f64; SEED_POINTS], [usize::MAX; SEED_POINTS]);
+    let mut m = 1;
+    for (j, &c) in answer.kernel().nodes().iter().enumerate() {
+        if c > 0.0 && c < 1.0 {
+            if m + 1 >= SEED_POINTS {
+                return false;
+            }
+            (xs[m], at[m]) = (c, j * d);
+            m += 1;
+        }
+    }
+    xs[m] = 1.0;
+    m += 1;
+    let mut vals: [&[f64]; SEED_POINTS] = [&[]; SEED_POINTS];
+    vals[0] = y0;
+    for k in 1..m - 1 {
+        vals[k] = &stages[at[k]..at[k] + d];
+    }
+    vals[m - 1] = y1;
+    let (xs, vals) = (&xs[..m], &vals[..m]);
+    // The Lagrange basis in its first barycentric form: ℓ_k(x) = Π_n (x − x_n) · b_k / (x − x_k),
+    // b_k = 1 / Π_{n≠k} (x_k − x_n); at a point itself, that point's value.
+    let mut b = [1.0f64; SEED_POINTS];
+    for (k, bk) in b[..m].iter_mut().enumerate() {
+        for (n, &xn) in xs.iter().enumerate() {
+            if n != k {
+                *bk *= xs[k] - xn;
+            }
+        }
+        *bk = 1.0 / *bk;
+    }
+    out.clear();
+    out.resize(nodes.len() * d, 0.0);
+    let mut w = [0.0f64; SEED_POINTS];
+    for (slot, &c) in out.chunks_exact_mut(d).zip(nodes) {
+        let x = ratio * c;
+        let w = &mut w[..m];
+        if let Some(k) = xs.iter().position(|&xk| xk == x) {
+            w.fill(0.0);
+            w[k] = 1.0;
+        } else {
+            let all: f64 = xs.iter().map(|&xn| x - xn).product();
+            for ((wk, &bk), &xk) in w.iter_mut().zip(&b[..m]).zip(xs) {
+                *wk = all * bk / (x - xk);
+            }
+        }
+        for (i, o) in slot.iter_mut().enumerate() {
+            let mut acc = from[i] - y0[i];
+            for (&wk, v) in w.iter().zip(vals) {
+                acc += wk * v[i];
+            }
+            *o = acc;
+        }
+    }
+    out.iter().all(|v| v.is_finite())
+}
+
+/// At most this many interpolation points in [`seed_from_step`] (r + 2 for r ≤ 14).
+const SEED_POINTS: usize = 16;
+
 /// The runs of a solve of `S`: the answer's stepper and the check's, and their copies for
 /// values between grid points (started from the grid state, no predictor).
 pub(super) struct PairRuns<'a, S: System> {
@@ -218,6 +367,10 @@ pub(super) struct PairRuns<'a, S: System> {
     seed_buf: Vec<f64>,
     /// The answer's steps and their sweeps, for [`seed_pays`].
     swept: (usize, usize),
+    /// The length of the completed step the answer's stepper for values between grid points
+    /// holds in its buffers (`None` where it holds none), which seeds the next such steps
+    /// from the same grid state ([`value_steps`]).
+    between_last: Option<f64>,
     /// The signs of the check's kicks ([`Kick`]).
     kick: Kick,
 }
@@ -269,22 +422,41 @@ impl<'a, S: System> PairRuns<'a, S> {
             stiffness: None,
             seed_buf: Vec::new(),
             swept: (0, 0),
+            between_last: None,
             kick: Kick::default(),
         })
     }
 
-    /// Seeds the next step of both runs' own steppers ([`Seed`]).
+    /// One step of length `h` (the step size these runs were built at) to a value between
+    /// grid points, with the runs' own steppers, as [`Runs::partial`] takes it with the
+    /// steppers kept for such values ([`value_steps`]): for [`Solution::at`](super::Solution::at),
+    /// which builds the runs for the value's length.
     ///
     /// # Errors
-    /// What [`Stepper::seed`](crate::stepper::Stepper) reports.
-    pub(super) fn seed(&mut self, seed: Seed<'_>) -> Result<()> {
+    /// What a stepper reports.
+    pub(super) fn value_step(
+        &mut self,
+        from: (&[f64], &[f64]),
+        out: (&mut [f64], &mut [f64]),
+        seed: Option<Seed<'_>>,
+        which: Which,
+        cost: &mut Cost,
+    ) -> Result<()> {
         let mut buf = std::mem::take(&mut self.seed_buf);
-        seed_stepper(&mut self.answer, seed, false, &mut buf)?;
-        if let Some(c) = self.check.as_mut() {
-            seed_stepper(c, seed, true, &mut buf)?;
-        }
+        let h = self.answer.step_size();
+        let check = self.check.as_mut().filter(|_| which != Which::Answer);
+        let done = value_steps(
+            (&mut self.answer, check),
+            from,
+            h,
+            out,
+            (seed, None),
+            which,
+            cost,
+            &mut buf,
+        );
         self.seed_buf = buf;
-        Ok(())
+        done.map(|_| ())
     }
 
     /// The steppers for values between grid points, built at step `dt` the first time.
@@ -422,35 +594,25 @@ impl<S: System> Runs for PairRuns<'_, S> {
         which: Which,
         cost: &mut Cost,
     ) -> Result<()> {
-        oa.copy_from_slice(ya);
-        oc.copy_from_slice(yc);
         let seed = seed.filter(|_| seed_pays(self.swept.0, self.swept.1));
         let mut buf = std::mem::take(&mut self.seed_buf);
+        let last = self.between_last.take();
         let stepped = self.between(dt).and_then(|(answer, check)| {
-            let mut check = check.as_mut().filter(|_| which != Which::Answer);
-            let with_answer = which != Which::Check;
-            if let Some(seed) = seed {
-                if with_answer {
-                    seed_stepper(answer, seed, false, &mut buf)?;
-                }
-                if let Some(c) = check.as_deref_mut() {
-                    seed_stepper(c, seed, true, &mut buf)?;
-                }
-            }
-            if with_answer {
-                let rep = answer.step(oa)?;
-                cost.dense_steps += 1;
-                cost.dense_g_evals += rep.g_evals;
-            }
-            if let Some(c) = check {
-                let rep = c.step(oc)?;
-                cost.dense_steps += 1;
-                cost.dense_g_evals += rep.g_evals;
-            }
-            Ok(())
+            let check = check.as_mut().filter(|_| which != Which::Answer);
+            value_steps(
+                (answer, check),
+                (ya, yc),
+                dt,
+                (oa, oc),
+                (seed, last),
+                which,
+                cost,
+                &mut buf,
+            )
         });
         self.seed_buf = buf;
-        stepped
+        self.between_last = stepped?;
+        Ok(())
     }
 
     fn drift(&self, y: &mut [f64], dt: f64) -> Result<()> {

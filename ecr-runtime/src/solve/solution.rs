@@ -476,12 +476,8 @@ impl<S: System> super::between::PartialSteps for FreshSteps<'_, S> {
             self.settings,
             &cache,
         )?;
-        if let Some(seed) = seed.filter(|_| self.seeded) {
-            runs.seed(seed)?;
-        }
-        out.0.copy_from_slice(from.0);
-        out.1.copy_from_slice(from.1);
-        super::runs::Runs::step(&mut runs, out.0, out.1, self.cost)
+        let seed = seed.filter(|_| self.seeded);
+        runs.value_step(from, out, seed, which, self.cost)
     }
 }
 

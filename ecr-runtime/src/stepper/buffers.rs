@@ -51,6 +51,15 @@ pub trait Buffers: Sized {
     fn y0(&self) -> &[f64];
     /// The moments of the last step.
     fn moments(&self) -> &[f64];
+    /// The stage values of the last step's final iterate (s·d), where the storage keeps them
+    /// from one step to the next (heap buffers; fixed-size storage does not).
+    fn stages(&self) -> Option<&[f64]> {
+        None
+    }
+    /// The state the last step returned (d), where the storage can hand it out.
+    fn last_state(&self) -> Option<&[f64]> {
+        None
+    }
     /// (r, s, d) where they are compile-time constants (fixed-size storage), so that a step's
     /// loops over them unroll.
     const SIZES: Option<(usize, usize, usize)> = None;
@@ -105,6 +114,12 @@ impl Buffers for VecBuffers {
     }
     fn moments(&self) -> &[f64] {
         &self.moments
+    }
+    fn stages(&self) -> Option<&[f64]> {
+        Some(&self.stages)
+    }
+    fn last_state(&self) -> Option<&[f64]> {
+        Some(&self.last)
     }
 }
 

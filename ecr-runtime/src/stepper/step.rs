@@ -338,6 +338,15 @@ impl<K: Kernel, S: System, B: Buffers> Stepper<K, S, B> {
         Ok(())
     }
 
+    /// The last completed step as the storage keeps it: its start y₀, its stage values (s·d,
+    /// in node order) and the state it returned, or `None` where the storage does not keep
+    /// the stages. After a failed step or [`set_step_size`](Self::set_step_size) these are
+    /// what the buffers hold, not necessarily a completed step of this h: the caller knows
+    /// which step they belong to.
+    pub(crate) fn last_step(&self) -> Option<(&[f64], &[f64], &[f64])> {
+        Some((self.buf.y0(), self.buf.stages()?, self.buf.last_state()?))
+    }
+
     /// Moves the state `y` that the last step returned to `f(y₀ᵢ, yᵢ)` for each component
     /// (y₀ the state that step started from), and the stepper's record of it alike, so that the
     /// next step still continues this one (the predictor, the compensated update). A `y` that is
