@@ -232,31 +232,40 @@ pub(super) fn value_steps<S: System>(
             let nodes = answer.kernel().nodes();
             seed_from_step(answer, dt / dt0, nodes, (ya, ya), buf)
         });
-        if own {
-            answer.seed(buf)?;
-        } else if let Some(seed) = seed {
-            seed_stepper(answer, seed, false, buf)?;
-        }
-        let rep = answer.step(oa)?;
+        value_step_from(answer, own, seed, false, oa, cost, buf)?;
         held = Some(dt);
-        cost.dense_steps += 1;
-        cost.dense_g_evals += rep.g_evals;
     }
     if let Some(c) = check {
         let own = held.is_some_and(|dt0| {
             let nodes = c.kernel().nodes();
             seed_from_step(answer, dt / dt0, nodes, (ya, yc), buf)
         });
-        if own {
-            c.seed(buf)?;
-        } else if let Some(seed) = seed {
-            seed_stepper(c, seed, true, buf)?;
-        }
-        let rep = c.step(oc)?;
-        cost.dense_steps += 1;
-        cost.dense_g_evals += rep.g_evals;
+        value_step_from(c, own, seed, true, oc, cost, buf)?;
     }
     Ok(held)
+}
+
+/// One step of `stepper` (the check's with `check`) on `y` for [`value_steps`], its stage
+/// iteration started from `buf` where `own` (a seed from the answer's step), else from `seed`
+/// where given, and counted as a step between grid points.
+fn value_step_from<S: System>(
+    stepper: &mut EcStepper<&S>,
+    own: bool,
+    seed: Option<Seed<'_>>,
+    check: bool,
+    y: &mut [f64],
+    cost: &mut Cost,
+    buf: &mut Vec<f64>,
+) -> Result<()> {
+    if own {
+        stepper.seed(buf)?;
+    } else if let Some(seed) = seed {
+        seed_stepper(stepper, seed, check, buf)?;
+    }
+    let rep = stepper.step(y)?;
+    cost.dense_steps += 1;
+    cost.dense_g_evals += rep.g_evals;
+    Ok(())
 }
 
 /// The seed, into `out`, of a step from `from` whose nodes are `nodes` (fractions of its
