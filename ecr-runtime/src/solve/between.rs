@@ -4,7 +4,8 @@
 //! the interpolant reads.
 
 use super::record::Point;
-use super::runs::{Cost, Runs, Seed};
+use super::runs::{Cost, Runs};
+use super::value_steps::Seed;
 use super::window::{Ctx, GridPoint};
 use crate::error::{Error, Result};
 

@@ -83,6 +83,7 @@ mod pilot;
 mod record;
 mod runs;
 mod solution;
+mod value_steps;
 mod window;
 
 use std::ops::ControlFlow;

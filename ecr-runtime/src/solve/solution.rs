@@ -422,7 +422,7 @@ impl<S: System> Solution<S> {
                 r: dense.r,
                 check: check.is_some(),
                 settings,
-                seeded: super::runs::seed_pays(self.stats.steps, self.stats.sweeps),
+                seeded: super::value_steps::seed_pays(self.stats.steps, self.stats.sweeps),
                 cost: &mut cost,
             },
             (out, None),
@@ -448,7 +448,7 @@ struct FreshSteps<'a, S: System> {
     check: bool,
     /// The steppers' settings; their banks' arithmetic serves both runs' steps.
     settings: SolverSettings,
-    /// Whether a step starts from the interpolant ([`seed_pays`](super::runs::seed_pays)).
+    /// Whether a step starts from the interpolant ([`seed_pays`](super::value_steps::seed_pays)).
     seeded: bool,
     cost: &'a mut super::runs::Cost,
 }
@@ -463,7 +463,7 @@ impl<S: System> super::between::PartialSteps for FreshSteps<'_, S> {
         from: (&[f64], &[f64]),
         dt: f64,
         out: (&mut [f64], &mut [f64]),
-        seed: Option<super::runs::Seed<'_>>,
+        seed: Option<super::value_steps::Seed<'_>>,
         which: super::between::Which,
     ) -> Result<()> {
         let cache = Arc::new(super::SolveCache::<S>::new(4));
