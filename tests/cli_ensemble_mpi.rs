@@ -213,7 +213,8 @@ fn rank_zero(parent: u32) -> Option<u32> {
     })
 }
 
-/// Rows in the unfinished file of `out` (`.NAME.ecr-partial-<hash>` beside it), if there is one.
+/// Member rows (the header not counted) in the unfinished file of `out`
+/// (`.NAME.ecr-partial-<hash>` beside it), if there is one.
 fn partial_rows(out: &std::path::Path) -> Option<usize> {
     let name = format!(".{}.ecr-partial-", out.file_name()?.to_str()?);
     let entry = std::fs::read_dir(out.parent()?)
@@ -224,7 +225,8 @@ fn partial_rows(out: &std::path::Path) -> Option<usize> {
     Some(
         text.split(|&b| b == b'\n')
             .filter(|l| !l.is_empty() && !l.starts_with(b"#"))
-            .count(),
+            .count()
+            .saturating_sub(1),
     )
 }
 
